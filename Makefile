@@ -1,0 +1,28 @@
+# `make demo` and `make test` each work on a fresh machine: they create .venv, install pamid
+# with its dependencies (and the test extras), then run the demo or the test suite.
+VENV    := .venv
+VPY     := $(VENV)/bin/python
+STAMP   := $(VENV)/.pamid-installed
+DEMO_OUT ?= demo-out
+
+.PHONY: install demo test bench clean
+
+$(STAMP): pyproject.toml
+	@py=$$(sh scripts/find-python.sh) || exit 1; \
+	if [ ! -x $(VPY) ]; then echo "creating $(VENV) with $$py"; "$$py" -m venv $(VENV) || exit 1; fi
+	$(VPY) -m pip install --disable-pip-version-check -q -e '.[tests]'
+	@touch $@
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/pamid demo --out $(DEMO_OUT)
+
+test: $(STAMP)
+	$(VPY) -m pytest -q
+
+bench: $(STAMP)
+	$(VPY) benchmarks/fit_batch.py
+
+clean:
+	rm -rf $(VENV) $(DEMO_OUT)

@@ -1,0 +1,787 @@
+"""Loading bench measurements of pneumatic artificial muscles (PAMs) from CSV or Parquet.
+
+A bench file is a table with one row per sample and the unit of each quantity in the column
+name, e.g. ``pressure_kPa``, ``force_N``, ``contraction_pct``. :func:`load_bench` checks the
+file thoroughly, converts it to pamid's units (kPa, %, N, mm, s) and returns a
+:class:`BenchData`. Every problem with the file raises :class:`~pamid._errors.BenchDataError`,
+whose message names the file and, where it applies, the column and the data row (1-based,
+header not counted) and, for CSV, the line in the file.
+
+Columns
+-------
+Required:
+    * gauge pressure, as exactly one of ``pressure_kPa``, ``pressure_bar``, ``pressure_Pa``,
+      ``pressure_psi`` (converted to kPa);
+    * ``force_N``, the axial pulling force in N;
+    * ``contraction_pct``, 100 (l0 - length) / l0 in percent, or else ``length_mm`` together
+      with the nominal length l0 in mm, from an ``l0_mm`` column (constant within a muscle)
+      or from the ``l0_mm=`` argument.
+Optional:
+    ``muscle`` (identifier, read as text), ``time_s``, ``direction`` (+1 contracting,
+    -1 extending), ``temperature_C``, ``cycle`` (whole numbers).
+Others:
+    Any further column whose cells are all numbers is kept as a covariate; any further
+    column holding text (a ``note``, say) is kept unchanged but is not a covariate.
+
+A column whose name starts with a known quantity (``pressure``, ``force``, ``length``,
+``l0``, ``contraction``, ``time``, ``temperature``, ``velocity``) must carry one of that
+quantity's accepted units; ``force_kN`` or ``time_ms`` are errors rather than silently
+ignored columns.
+
+Censoring
+---------
+Published force maps mark the lengths a muscle cannot reach at a given pressure with a
+force of exactly 0 N. Such rows are dropped (with a :class:`CensoredRowsWarning`) unless
+``keep_censored=True``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .._errors import BenchDataError
+from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_text_to_kPa, pressure_to_kPa
+
+__all__ = ["BenchData", "CensoredRowsWarning", "load_bench"]
+
+#: Accepted units for each quantity that bench-file column names may start with.
+QUANTITY_UNITS: dict[str, tuple[str, ...]] = {
+    "pressure": PRESSURE_UNITS,
+    "force": ("N",),
+    "length": ("mm",),
+    "l0": ("mm",),
+    "contraction": ("pct",),
+    "time": ("s",),
+    "temperature": ("C",),
+    "velocity": ("mm_s",),
+}
+#: Pressure column names and the unit each one carries.
+PRESSURE_COLUMNS: dict[str, str] = {f"pressure_{unit}": unit for unit in PRESSURE_UNITS}
+#: Physical range of the contraction, in percent of the nominal length.
+CONTRACTION_RANGE_PCT: tuple[float, float] = (-10.0, 50.0)
+#: Extensions read as Parquet; every other extension is read as CSV.
+PARQUET_SUFFIXES: tuple[str, ...] = (".parquet", ".pq")
+
+# Canonical optional columns, in the order they appear in BenchData.frame.
+_OPTIONAL_NUMERIC = ("time_s", "direction", "temperature_C", "cycle", "length_mm", "l0_mm")
+_RESERVED = ("source_row",)
+
+
+class CensoredRowsWarning(UserWarning):
+    """Rows with a force of exactly 0 N (censored points of a force map) were dropped."""
+
+
+@dataclass(frozen=True, eq=False)
+class BenchData:
+    """Bench measurements, checked and converted to pamid's units.
+
+    Attributes
+    ----------
+    frame:
+        One row per kept sample. Columns: ``muscle`` (str), ``pressure_kPa`` (gauge pressure,
+        kPa), ``contraction_pct`` (%, positive when shorter than l0), ``force_N`` (N), all
+        float64 apart from ``muscle``; then those of ``time_s`` (s), ``direction`` (int, +1
+        or -1), ``temperature_C`` (deg C), ``cycle`` (int), ``length_mm`` (mm) and
+        ``l0_mm`` (mm) that are known; then the covariates and any text columns as given;
+        last ``source_row``, the 1-based data row of the sample in the file.
+    path:
+        The file, as given to :func:`load_bench`.
+    has_muscle_column:
+        False when the file had no ``muscle`` column; every row then has the id ``"muscle"``.
+    muscles:
+        Muscle ids in order of first appearance (among the kept rows).
+    l0_mm:
+        Nominal length per muscle in mm, or None where the file does not give it.
+    covariates:
+        Names of the extra numeric columns, in file order.
+    n_censored:
+        Number of censored rows (force exactly 0) dropped; 0 when they were kept.
+    pressure_unit_in_file:
+        The pressure unit of the file's pressure column (``"kPa"``, ``"bar"``, ``"Pa"`` or
+        ``"psi"``); ``frame`` always holds kPa.
+    """
+
+    frame: pd.DataFrame
+    path: str
+    has_muscle_column: bool
+    muscles: tuple[str, ...]
+    l0_mm: dict[str, float | None] = field(default_factory=dict)
+    covariates: tuple[str, ...] = ()
+    n_censored: int = 0
+    pressure_unit_in_file: str = "kPa"
+
+    def for_muscle(self, muscle_id: str) -> pd.DataFrame:
+        """The rows of one muscle, as a new DataFrame with a fresh 0-based index.
+
+        Raises KeyError, naming the known ids, if ``muscle_id`` is not among :attr:`muscles`.
+        """
+        if muscle_id not in self.muscles:
+            known = ", ".join(repr(m) for m in self.muscles)
+            raise KeyError(f"{self.path}: no muscle {muscle_id!r}; muscles in the file: {known}")
+        rows = self.frame[self.frame["muscle"] == muscle_id]
+        return rows.reset_index(drop=True)
+
+    def __len__(self) -> int:
+        return len(self.frame)
+
+
+# --------------------------------------------------------------------------------------
+# Raw table: the file's cells, before any interpretation
+# --------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Column:
+    """One column as read: text cells (CSV, Parquet strings) or numbers (Parquet numerics).
+
+    For text, ``text`` holds the stripped cells ('' for an empty cell or a null). For
+    numbers, ``values`` holds float64 values and ``null`` marks missing ones. ``original``
+    is what goes into the frame if the column ends up kept unchanged.
+    """
+
+    name: str
+    text: list[str] | None = None
+    values: np.ndarray | None = None
+    null: np.ndarray | None = None
+    original: object = None
+    parsed: np.ndarray | None = None  # float64 values of a text column, once checked
+
+    def raw(self, i: int) -> str:
+        """Cell ``i`` as it reads in the file, for messages."""
+        if self.text is not None:
+            return self.text[i]
+        if self.null[i]:
+            return "null"
+        value = float(self.values[i])
+        return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
+
+
+@dataclass
+class _Table:
+    path: str
+    names: list[str]
+    columns: dict[str, _Column]
+    n_rows: int
+    lines: list[int] | None  # file line of each data row (CSV only)
+    is_csv: bool
+
+    def error(self, message: str, *, column: str | None = None, index: int | None = None):
+        """A BenchDataError for data row ``index`` (0-based) of ``column``."""
+        row = line = None
+        if index is not None:
+            row = int(index) + 1
+            if self.lines is not None:
+                line = self.lines[int(index)]
+        return BenchDataError(self.path, message, column=column, row=row, line=line)
+
+
+def _looks_binary(data: bytes) -> bool:
+    """True for bytes that are clearly not a text table (NULs or many control bytes)."""
+    head = data[:8192]
+    if b"\x00" in head:
+        return True
+    control = sum(1 for b in head if b < 32 and b not in (9, 10, 12, 13))
+    return control > 0.05 * len(head)
+
+
+def _detect_delimiter(text: str) -> str:
+    """Comma unless the first non-blank line has none but has semicolons or tabs."""
+    for line in text.splitlines():
+        if line.strip():
+            if "," in line:
+                return ","
+            if ";" in line:
+                return ";"
+            if "\t" in line:
+                return "\t"
+            return ","
+    return ","
+
+
+def _read_bytes(path: Path, shown: str) -> bytes:
+    if not path.exists():
+        raise BenchDataError(shown, "file not found")
+    if path.is_dir():
+        raise BenchDataError(shown, "is a directory, not a data file")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise BenchDataError(shown, f"cannot read the file: {exc.strerror or exc}") from exc
+    if not data:
+        raise BenchDataError(shown, "the file is empty (0 bytes); expected a table with a header")
+    return data
+
+
+def _read_csv(path: Path, shown: str) -> _Table:
+    """Read a CSV file cell by cell, keeping the file line of every data row."""
+    data = _read_bytes(path, shown)
+    if data[:4] == b"PAR1":
+        raise BenchDataError(
+            shown, "this is a Parquet file, not CSV; give it the extension .parquet"
+        )
+    if _looks_binary(data):
+        raise BenchDataError(
+            shown, "not a table: the file holds binary data, expected CSV text or Parquet"
+        )
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")  # legacy single-byte files; never fails
+
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=_detect_delimiter(text))
+    header: list[str] | None = None
+    header_line = 0
+    records: list[list[str]] = []
+    lines: list[int] = []
+    last_line = 0
+    try:
+        for record in reader:
+            start, last_line = last_line + 1, reader.line_num
+            cells = [cell.strip() for cell in record]
+            if not any(cells):
+                continue  # blank line, or a row of empty cells
+            if header is None:
+                while cells and not cells[-1]:
+                    cells.pop()  # trailing delimiters after the last name
+                header, header_line = cells, start
+                continue
+            if len(cells) != len(header):
+                if len(cells) > len(header) and not any(cells[len(header) :]):
+                    cells = cells[: len(header)]
+                else:
+                    raise BenchDataError(
+                        shown,
+                        f"this row has {len(cells)} cells but the header (line {header_line}) "
+                        f"names {len(header)} columns",
+                        row=len(records) + 1,
+                        line=start,
+                    )
+            records.append(cells)
+            lines.append(start)
+    except csv.Error as exc:
+        raise BenchDataError(
+            shown, f"not a readable CSV table near line {reader.line_num}: {exc}"
+        ) from exc
+    if header is None:
+        raise BenchDataError(shown, "the file holds only blank lines; expected a table")
+
+    for j, name in enumerate(header):
+        if not name:
+            raise BenchDataError(shown, f"header column {j + 1} (line {header_line}) has no name")
+    _check_duplicates(shown, header)
+    columns = {}
+    for j, name in enumerate(header):
+        cells = [record[j] for record in records]
+        columns[name] = _Column(name, text=cells, original=cells)
+    return _Table(shown, list(header), columns, len(records), lines, is_csv=True)
+
+
+def _check_duplicates(shown: str, names: list[str]) -> None:
+    seen: dict[str, int] = {}
+    for j, name in enumerate(names):
+        if name in seen:
+            raise BenchDataError(
+                shown,
+                f"the column name appears twice in the header (columns {seen[name] + 1} and "
+                f"{j + 1}); each column name must be unique",
+                column=name,
+            )
+        seen[name] = j
+
+
+def _read_parquet(path: Path, shown: str) -> _Table:
+    """Read a Parquet file with pyarrow, column by column."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    _read_bytes(path, shown)  # existence, directory and empty-file checks
+    try:
+        schema = pq.read_schema(path)
+    except Exception as exc:  # pyarrow raises several types for a corrupt file
+        raise BenchDataError(shown, f"not a table: cannot read it as Parquet ({exc})") from exc
+    names = [n for n in schema.names if not n.startswith("__index_level_")]
+    for j, name in enumerate(names):
+        if not name.strip():
+            raise BenchDataError(shown, f"column {j + 1} has no name")
+    _check_duplicates(shown, names)
+    try:
+        table = pq.ParquetFile(path).read()
+    except Exception as exc:
+        raise BenchDataError(shown, f"cannot read the Parquet data ({exc})") from exc
+
+    columns = {}
+    for j, name in enumerate(table.column_names):
+        if name.startswith("__index_level_"):
+            continue
+        chunked = table.column(j)
+        kind = chunked.type
+        numeric = pa.types.is_integer(kind) or pa.types.is_floating(kind)
+        numeric = numeric or pa.types.is_decimal(kind)
+        if numeric:
+            null = np.asarray(chunked.is_null().to_numpy(zero_copy_only=False), dtype=bool)
+            floats = pc.fill_null(pc.cast(chunked, pa.float64()), float("nan"))
+            values = np.asarray(floats.to_numpy(), dtype=np.float64)
+            columns[name.strip()] = _Column(
+                name.strip(), values=values, null=null, original=chunked.to_pandas()
+            )
+        else:
+            cells = ["" if v is None else str(v).strip() for v in chunked.to_pylist()]
+            columns[name.strip()] = _Column(name.strip(), text=cells, original=chunked.to_pandas())
+    return _Table(shown, [n.strip() for n in names], columns, table.num_rows, None, False)
+
+
+# --------------------------------------------------------------------------------------
+# Interpretation
+# --------------------------------------------------------------------------------------
+
+
+def _quantity_of(name: str) -> str | None:
+    """The known quantity a column name starts with (case-insensitive), or None."""
+    lower = name.lower()
+    for quantity in QUANTITY_UNITS:
+        if lower == quantity or lower.startswith(quantity + "_"):
+            return quantity
+    return None
+
+
+def _check_units(table: _Table) -> None:
+    for name in table.names:
+        if name in _RESERVED:
+            raise table.error(
+                "this column name is reserved for the row numbers pamid adds; rename it",
+                column=name,
+            )
+        quantity = _quantity_of(name)
+        if quantity is None:
+            continue
+        accepted = [f"{quantity}_{unit}" for unit in QUANTITY_UNITS[quantity]]
+        if name in accepted:
+            continue
+        units = ", ".join(QUANTITY_UNITS[quantity])
+        spelled = [a for a in accepted if a.lower() == name.lower()]
+        if spelled:
+            raise table.error(
+                f"units are case-sensitive: name the column {spelled[0]} "
+                f"(accepted units for {quantity}: {units})",
+                column=name,
+            )
+        given = name[len(quantity) + 1 :] if len(name) > len(quantity) else ""
+        what = f"unknown unit '{given}'" if given else "no unit in the column name"
+        raise table.error(
+            f"{what} for {quantity}; accepted units: {units} "
+            f"(name the column {' or '.join(accepted)})",
+            column=name,
+        )
+
+
+def _number_problem(cell: str) -> str | None:
+    """Why a text cell is not a finite number, or None if it is one."""
+    if cell == "":
+        return "empty cell; a number is required here"
+    try:
+        if "_" in cell:
+            raise ValueError
+        value = float(cell)
+    except ValueError:
+        return f"'{cell}' is not a number"
+    if math.isnan(value):
+        return f"'{cell}' is NaN; a measured number is required here"
+    if math.isinf(value):
+        return f"'{cell}' is infinite; a finite number is required here"
+    return None
+
+
+def _first_problem(col: _Column) -> tuple[int, str] | None:
+    """The first row of ``col`` that is not a finite number, with the reason."""
+    if col.text is not None:
+        # Fast path: numpy parses the whole column; the slow loop only finds the bad cell.
+        try:
+            if "_" not in "".join(col.text):
+                parsed = np.array(col.text, dtype=np.float64)
+                if np.isfinite(parsed).all():
+                    col.parsed = parsed
+                    return None
+        except ValueError:
+            pass
+        for i, cell in enumerate(col.text):
+            problem = _number_problem(cell)
+            if problem is not None:
+                return i, problem
+        return None
+    bad = col.null | ~np.isfinite(col.values)
+    if not bad.any():
+        return None
+    i = int(np.argmax(bad))
+    if col.null[i]:
+        return i, "missing value (null); a number is required here"
+    if np.isnan(col.values[i]):
+        return i, "NaN; a measured number is required here"
+    return i, f"{col.raw(i)} is infinite; a finite number is required here"
+
+
+def _as_floats(col: _Column) -> np.ndarray:
+    """Float64 values of a column already known to hold only finite numbers."""
+    if col.parsed is not None:
+        return col.parsed.copy()
+    if col.text is not None:
+        return np.array([float(cell) for cell in col.text], dtype=np.float64)
+    return col.values.astype(np.float64, copy=True)
+
+
+def _is_numeric_extra(col: _Column) -> bool:
+    """Whether an extra column is a numeric covariate.
+
+    Parquet: a numeric column type. Text: at least one non-empty cell, and every non-empty
+    cell reads as a number (NaN and inf included, so that they are reported as errors).
+    """
+    if col.text is None:
+        return True
+    filled = [cell for cell in col.text if cell]
+    if not filled:
+        return False
+    for cell in filled:
+        try:
+            if "_" in cell:
+                return False
+            float(cell)
+        except ValueError:
+            return False
+    return True
+
+
+def _check_required(table: _Table, l0_arg: float | None) -> str:
+    """Check the required columns are there; return the pressure column's name."""
+    names = table.names
+    pressures = [name for name in names if name in PRESSURE_COLUMNS]
+    if len(pressures) > 1:
+        raise table.error(
+            f"more than one pressure column ({', '.join(pressures)}); the pressure is "
+            "ambiguous, keep exactly one",
+            column=pressures[1],
+        )
+    missing = []
+    if not pressures:
+        missing.append("pressure_kPa (or pressure_bar, pressure_Pa, pressure_psi)")
+    if "force_N" not in names:
+        missing.append("force_N")
+    if "contraction_pct" not in names and "length_mm" not in names:
+        missing.append("contraction_pct (or length_mm with l0_mm)")
+    if missing:
+        found = ", ".join(names) if names else "none"
+        lead = "missing required column" + ("s" if len(missing) > 1 else "")
+        if len(missing) == 3:
+            lead = "not a bench table: none of the required columns were found; missing"
+        column = missing[0].split(" ")[0] if len(missing) == 1 else None
+        raise table.error(f"{lead}: {'; '.join(missing)}. Columns found: {found}", column=column)
+    if table.n_rows == 0:
+        raise table.error("no data rows: the file has a header but no data below it")
+    if "contraction_pct" not in names and "l0_mm" not in names and l0_arg is None:
+        raise table.error(
+            "length_mm is given without contraction_pct, so the nominal length l0 is needed "
+            "to compute the contraction: add an l0_mm column or pass l0_mm=... "
+            "(--l0-mm on the command line)",
+            column="length_mm",
+        )
+    return pressures[0]
+
+
+def _first_true(mask: np.ndarray) -> int | None:
+    return int(np.argmax(mask)) if mask.any() else None
+
+
+def load_bench(
+    path: str | os.PathLike,
+    *,
+    l0_mm: float | None = None,
+    keep_censored: bool = False,
+) -> BenchData:
+    """Load a bench file (CSV or Parquet) of pneumatic-muscle measurements.
+
+    Parameters
+    ----------
+    path:
+        The file. ``.parquet`` and ``.pq`` are read as Parquet, anything else as CSV
+        (comma-separated; semicolon or tab when the header has no comma).
+    l0_mm:
+        Nominal (unpressurised, uncontracted) muscle length in mm, for files that give
+        ``length_mm`` but neither ``contraction_pct`` nor an ``l0_mm`` column. If the file has
+        an ``l0_mm`` column too, the two must agree.
+    keep_censored:
+        Keep rows with a force of exactly 0 N. By default they are dropped with a
+        :class:`CensoredRowsWarning`, because force maps use 0 to mark lengths the muscle
+        cannot hold.
+
+    Returns
+    -------
+    BenchData
+        The checked data with pressures in kPa and the contraction in percent.
+
+    Raises
+    ------
+    BenchDataError
+        For any problem with the file; the message names the file and, where it applies,
+        the column and the 1-based data row (and the file line, for CSV).
+    """
+    shown = str(path)
+    p = Path(path)
+    if l0_mm is not None:
+        try:
+            l0_value = float(l0_mm)
+        except (TypeError, ValueError):
+            l0_value = math.nan
+        if not math.isfinite(l0_value) or l0_value <= 0:
+            raise BenchDataError(
+                shown, f"the l0_mm argument must be a positive length in mm, got {l0_mm!r}"
+            )
+    else:
+        l0_value = None
+
+    if p.suffix.lower() in PARQUET_SUFFIXES:
+        table = _read_parquet(p, shown)
+    else:
+        table = _read_csv(p, shown)
+
+    _check_units(table)
+    pressure_col = _check_required(table, l0_value)
+    pressure_unit = PRESSURE_COLUMNS[pressure_col]
+    names = table.names
+    cols = table.columns
+    n = table.n_rows
+
+    # ---- which columns are numbers, and are they all finite numbers ----
+    known_numeric = [
+        name for name in names if name in ("direction", "cycle") or (_quantity_of(name) is not None)
+    ]
+    extras = [name for name in names if name != "muscle" and name not in known_numeric]
+    covariates = [name for name in extras if _is_numeric_extra(cols[name])]
+    covariates += [name for name in known_numeric if _quantity_of(name) == "velocity"]
+    covariates = [name for name in names if name in covariates]  # file order
+    text_extras = [name for name in extras if name not in covariates]
+
+    first: tuple[int, int, str, str] | None = None
+    for order, name in enumerate(names):
+        if name not in known_numeric and name not in covariates:
+            continue
+        problem = _first_problem(cols[name])
+        if problem is not None and (first is None or problem[0] < first[0]):
+            first = (problem[0], order, name, problem[1])
+    if first is not None:
+        raise table.error(first[3], column=first[2], index=first[0])
+    values = {name: _as_floats(cols[name]) for name in names if name in known_numeric}
+    values.update({name: _as_floats(cols[name]) for name in covariates})
+
+    # ---- muscle ids ----
+    if "muscle" in cols:
+        muscle_col = cols["muscle"]
+        if muscle_col.text is not None:
+            ids = list(muscle_col.text)
+            missing = [cell == "" for cell in ids]
+        else:
+            ids = [muscle_col.raw(i) for i in range(n)]
+            missing = list(muscle_col.null)
+        i = _first_true(np.asarray(missing, dtype=bool))
+        if i is not None:
+            raise table.error("empty muscle id; every row needs one", column="muscle", index=i)
+        has_muscle = True
+    else:
+        ids = ["muscle"] * n
+        has_muscle = False
+    ids_arr = np.asarray(ids, dtype=object)
+
+    # ---- pressure ----
+    pressure_col_obj = cols[pressure_col]
+    if table.is_csv and pressure_unit != "kPa":
+        pressure_kpa = pressure_text_to_kPa(pressure_col_obj.text, pressure_unit)
+    else:
+        pressure_kpa = pressure_to_kPa(values[pressure_col], pressure_unit)
+    i = _first_true(pressure_kpa < -ATMOSPHERE_KPA)
+    if i is not None:
+        raise table.error(
+            f"gauge pressure {pressure_col_obj.raw(i)} {pressure_unit} "
+            f"({pressure_kpa[i]:.6g} kPa) is below -{ATMOSPHERE_KPA} kPa, which would be a "
+            "negative absolute pressure; pressure columns hold gauge pressure "
+            "(absolute minus atmospheric)",
+            column=pressure_col,
+            index=i,
+        )
+
+    # ---- lengths and nominal length ----
+    for name in ("length_mm", "l0_mm"):
+        if name in values:
+            i = _first_true(values[name] <= 0)
+            if i is not None:
+                raise table.error(
+                    f"{name} must be a positive length in mm, got {cols[name].raw(i)}",
+                    column=name,
+                    index=i,
+                )
+    l0_rows: np.ndarray | None = None
+    if "l0_mm" in values:
+        l0_rows = values["l0_mm"]
+        first_l0: dict[str, tuple[int, float]] = {}
+        for i, (muscle_id, l0) in enumerate(zip(ids, l0_rows, strict=True)):
+            ref = first_l0.setdefault(muscle_id, (i, l0))
+            if l0 != ref[1]:
+                raise table.error(
+                    f"l0_mm is {cols['l0_mm'].raw(i)} here but {cols['l0_mm'].raw(ref[0])} on "
+                    f"row {ref[0] + 1} for muscle '{muscle_id}'; the nominal length must be "
+                    "constant within a muscle",
+                    column="l0_mm",
+                    index=i,
+                )
+        if l0_value is not None:
+            i = _first_true(l0_rows != l0_value)
+            if i is not None:
+                raise table.error(
+                    f"l0_mm is {cols['l0_mm'].raw(i)} here but the l0_mm argument is "
+                    f"{l0_value:g}; give the nominal length in one place only",
+                    column="l0_mm",
+                    index=i,
+                )
+    elif l0_value is not None:
+        l0_rows = np.full(n, l0_value)
+
+    # ---- contraction ----
+    lo, hi = CONTRACTION_RANGE_PCT
+    if "contraction_pct" in values:
+        contraction = values["contraction_pct"]
+        i = _first_true((contraction < lo) | (contraction > hi))
+        if i is not None:
+            raise table.error(
+                f"contraction {cols['contraction_pct'].raw(i)} % is outside the physical "
+                f"range {lo:g} % to {hi:g} % (values are percent of the nominal length: "
+                "20 means 20 %)",
+                column="contraction_pct",
+                index=i,
+            )
+    else:
+        length = values["length_mm"]
+        contraction = 100.0 * (l0_rows - length) / l0_rows
+        i = _first_true((contraction < lo) | (contraction > hi))
+        if i is not None:
+            raise table.error(
+                f"length {cols['length_mm'].raw(i)} mm with l0 {l0_rows[i]:g} mm gives a "
+                f"contraction of {contraction[i]:.4g} %, outside the physical range "
+                f"{lo:g} % to {hi:g} %; check the length and l0 (both in mm)",
+                column="length_mm",
+                index=i,
+            )
+
+    # ---- direction, cycle, time ----
+    if "direction" in values:
+        direction = values["direction"]
+        i = _first_true((direction != 1.0) & (direction != -1.0))
+        if i is not None:
+            raise table.error(
+                f"direction must be +1 (contracting) or -1 (extending), got "
+                f"{cols['direction'].raw(i)}",
+                column="direction",
+                index=i,
+            )
+    if "cycle" in values:
+        cycle = values["cycle"]
+        i = _first_true(cycle != np.round(cycle))
+        if i is not None:
+            raise table.error(
+                f"cycle must be a whole number, got {cols['cycle'].raw(i)}",
+                column="cycle",
+                index=i,
+            )
+    if "time_s" in values:
+        time = values["time_s"]
+        # For every row, the index of the previous row of the same muscle (-1 if none).
+        previous = pd.Series(np.arange(n)).groupby(ids_arr, sort=False).shift(fill_value=-1)
+        previous = previous.to_numpy()
+        has_prev = previous >= 0
+        i = _first_true(has_prev & (time <= time[np.maximum(previous, 0)]))
+        if i is not None:
+            j = int(previous[i])
+            whose = f" of muscle '{ids[i]}'" if has_muscle else ""
+            raise table.error(
+                f"time_s {cols['time_s'].raw(i)} s is not later than {cols['time_s'].raw(j)} s "
+                f"on row {j + 1}{whose}; time must increase strictly within a muscle",
+                column="time_s",
+                index=i,
+            )
+
+    # ---- assemble the frame ----
+    data: dict[str, object] = {
+        "muscle": ids,
+        "pressure_kPa": pressure_kpa.astype(np.float64),
+        "contraction_pct": np.asarray(contraction, dtype=np.float64),
+        "force_N": values["force_N"],
+    }
+    for name in _OPTIONAL_NUMERIC:
+        if name == "l0_mm":
+            if l0_rows is not None:
+                data[name] = np.asarray(l0_rows, dtype=np.float64)
+        elif name in values:
+            column = values[name]
+            data[name] = column.astype(np.int64) if name in ("direction", "cycle") else column
+    for name in names:
+        if name in covariates:
+            data[name] = values[name]
+        elif name in text_extras:
+            data[name] = cols[name].original
+    data["source_row"] = np.arange(1, n + 1, dtype=np.int64)
+    frame = pd.DataFrame(
+        {k: (v.to_numpy() if isinstance(v, pd.Series) else v) for k, v in data.items()}
+    )
+
+    # ---- censoring ----
+    censored = frame["force_N"].to_numpy() == 0.0
+    n_censored = int(censored.sum())
+    if n_censored and not keep_censored:
+        if n_censored == n:
+            raise table.error(
+                f"all {n} data rows have force_N exactly 0 (censored points); nothing is left. "
+                "Pass keep_censored=True (--keep-censored) to keep them",
+                column="force_N",
+            )
+        before = list(dict.fromkeys(ids))
+        frame = frame.loc[~censored].reset_index(drop=True)
+        gone = [m for m in before if m not in set(frame["muscle"])]
+        note = ""
+        if gone:
+            note = "; muscles with only censored rows, left out: " + ", ".join(
+                repr(m) for m in gone
+            )
+        warnings.warn(
+            f"{shown}: dropped {n_censored} censored rows (force_N exactly 0) out of {n}"
+            f"{note}; pass keep_censored=True to keep them",
+            CensoredRowsWarning,
+            stacklevel=2,
+        )
+    else:
+        n_censored = 0
+
+    muscles = tuple(dict.fromkeys(frame["muscle"].tolist()))
+    l0_per_muscle: dict[str, float | None] = {}
+    for muscle_id in muscles:
+        if "l0_mm" in frame:
+            l0_per_muscle[muscle_id] = float(
+                frame.loc[frame["muscle"] == muscle_id, "l0_mm"].iloc[0]
+            )
+        else:
+            l0_per_muscle[muscle_id] = None
+
+    return BenchData(
+        frame=frame,
+        path=shown,
+        has_muscle_column=has_muscle,
+        muscles=muscles,
+        l0_mm=l0_per_muscle,
+        covariates=tuple(covariates),
+        n_censored=n_censored,
+        pressure_unit_in_file=pressure_unit,
+    )

@@ -1,0 +1,192 @@
+"""The virtual bench: synthetic quasi-static bench data from known constants.
+
+It reproduces Sárosi's protocol (section 2.1 of the summary): the muscle lies horizontally,
+one end on a load cell, the other moved step by step by a threaded rod whose position an
+incremental encoder reads to 0.01 mm; the force–contraction curve is sampled in 30 points
+at each constant pressure, contracting and extending, and each measurement is repeated five
+times and averaged. Every bench file that pamid ships (the `make demo` data set among them)
+comes from here, from pamid's own code, with its constants and noise recorded.
+
+Effects the static model lacks can be switched on; the default protocol has none but
+sensor noise and resolution. ``hysteresis_N_per_bar`` makes the force direction dependent:
+the extending branch lies above the contracting one by 2·h·p (Sárosi's upper curve F_f and
+lower curve F_a, eq. 2.3–2.4).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+
+from .._models._sarosi import Sarosi, sarosi_force
+from .._units import KPA_PER_BAR
+
+
+@dataclasses.dataclass(frozen=True)
+class SarosiProtocol:
+    """Sárosi's quasi-static protocol, with the sensors' noise and resolution.
+
+    Attributes:
+        pressures_kPa: constant gauge pressures, one pair of sweeps each.
+        points_per_curve: samples per sweep (Sárosi: 30).
+        kappa_max_pct: largest contraction the rig reaches (DMSP muscles: 25 %).
+        min_force_N: a sweep stops where the true force falls to this value (the muscle
+            cannot hold a length at which it would push); Sárosi's curves end there too.
+        directions: +1 contracting sweep (κ rising), −1 extending sweep (κ falling).
+        repeats: measurements at every point (Sárosi: 5).
+        average_repeats: write the mean of the repeats (Sárosi's "taken the average")
+            instead of every repeat as its own cycle.
+        l0_mm: nominal length of the muscle.
+        noise_sd_N: load-cell noise of one reading, standard deviation.
+        force_resolution_N: the load cell's reading step (0 for none).
+        length_resolution_mm: the encoder's step (Sárosi's LINIMIK MSA 320: 0.01 mm).
+        hysteresis_N_per_bar: half height of the hysteresis loop per bar of pressure.
+        seconds_per_point: time between samples, for the `time_s` column.
+    """
+
+    pressures_kPa: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
+    points_per_curve: int = 30
+    kappa_max_pct: float = 25.0
+    min_force_N: float = 0.0
+    directions: tuple[int, ...] = (1, -1)
+    repeats: int = 5
+    average_repeats: bool = True
+    l0_mm: float = 400.0
+    noise_sd_N: float = 2.0
+    force_resolution_N: float = 0.1
+    length_resolution_mm: float = 0.01
+    hysteresis_N_per_bar: float = 0.0
+    seconds_per_point: float = 2.0
+
+    def __post_init__(self):
+        if self.points_per_curve < 2:
+            raise ValueError("points_per_curve must be at least 2")
+        if self.repeats < 1:
+            raise ValueError("repeats must be at least 1")
+        if any(d not in (1, -1) for d in self.directions):
+            raise ValueError("directions must be +1 (contracting) or -1 (extending)")
+        if self.l0_mm <= 0:
+            raise ValueError("l0_mm must be positive")
+
+
+def _sweep_end_pct(params: Sarosi, pressure_bar, kappa_max_pct, min_force_N):
+    """Contraction at which the model force falls to ``min_force_N``, capped at κ_max.
+
+    Bisection on [0, κ_max]; the force of a real muscle falls monotonically with
+    contraction at constant pressure, so the root is unique where it exists.
+    """
+
+    def f(k):
+        return sarosi_force(params, pressure_bar, k) - min_force_N
+
+    lo = jnp.zeros_like(pressure_bar)
+    hi = jnp.full_like(pressure_bar, kappa_max_pct)
+    reaches_end = f(hi) > 0
+
+    def body(_, bracket):
+        lo, hi = bracket
+        mid = 0.5 * (lo + hi)
+        above = f(mid) > 0
+        return jnp.where(above, mid, lo), jnp.where(above, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, 80, body, (lo, hi))
+    return jnp.where(reaches_end, kappa_max_pct, lo)
+
+
+def _quantize(x, step):
+    return x if step <= 0 else np.round(x / step) * step
+
+
+def simulate_sarosi_bench(
+    key: jax.Array,
+    params: Sarosi,
+    protocol: SarosiProtocol = SarosiProtocol(),
+    muscle_ids: list[str] | None = None,
+) -> pd.DataFrame:
+    """Simulate bench data for one muscle, or many when ``params`` carries a leading axis.
+
+    Args:
+        key: a JAX PRNG key; the only source of randomness.
+        params: Sárosi constants; fields of shape () for one muscle or (M,) for M muscles.
+        protocol: the measurement protocol and sensor model.
+        muscle_ids: names of the muscles (default "M0001", …).
+
+    Returns:
+        A table in pamid's bench format: muscle, pressure_kPa, length_mm, l0_mm,
+        contraction_pct, force_N, direction, time_s, and cycle when repeats are kept.
+        Contraction is what the encoder reads (quantized); force is the load-cell reading.
+    """
+    theta = np.atleast_2d(np.asarray(params.to_vector(), dtype=float))
+    n_muscles = theta.shape[0]
+    if muscle_ids is None:
+        muscle_ids = [f"M{i + 1:04d}" for i in range(n_muscles)]
+    if len(muscle_ids) != n_muscles:
+        raise ValueError(f"{len(muscle_ids)} muscle ids for {n_muscles} parameter sets")
+    batched = Sarosi.from_vector(jnp.asarray(theta))
+
+    p_bar = np.asarray(protocol.pressures_kPa, float) / KPA_PER_BAR
+    ends = np.asarray(
+        jax.vmap(
+            lambda prm: _sweep_end_pct(
+                prm, jnp.asarray(p_bar), protocol.kappa_max_pct, protocol.min_force_N
+            )
+        )(batched)
+    )  # (M, P)
+
+    # Set points: 30 evenly spaced positions per sweep; the extending sweep retraces them.
+    u = np.linspace(0.0, 1.0, protocol.points_per_curve)
+    kappa_set = ends[:, :, None] * u  # (M, P, K)
+    n_dir, n_rep = len(protocol.directions), protocol.repeats
+    kappa_sweeps = np.stack(
+        [kappa_set if d == 1 else kappa_set[..., ::-1] for d in protocol.directions], axis=2
+    )  # (M, P, D, K)
+    length_set = protocol.l0_mm * (1.0 - kappa_sweeps / 100.0)
+    length_read = _quantize(length_set, protocol.length_resolution_mm)
+    kappa_true = 100.0 * (protocol.l0_mm - length_read) / protocol.l0_mm
+
+    direction = np.asarray(protocol.directions, float)[None, None, :, None]
+    p_grid = p_bar[None, :, None, None]
+    f_true = np.asarray(
+        jax.vmap(lambda prm, k: sarosi_force(prm, jnp.asarray(p_grid[0]), k))(
+            batched, jnp.asarray(kappa_true)
+        )
+    )
+    f_true = f_true - direction * protocol.hysteresis_N_per_bar * p_grid
+
+    noise = protocol.noise_sd_N * np.asarray(
+        jax.random.normal(key, (n_rep, *f_true.shape), dtype=jnp.float64)
+    )
+    readings = _quantize(f_true[None] + noise, protocol.force_resolution_N)  # (R, M, P, D, K)
+    if protocol.average_repeats:
+        readings = readings.mean(axis=0, keepdims=True)
+        cycles = [None]
+    else:
+        cycles = list(range(1, n_rep + 1))
+
+    frames = []
+    n_points = protocol.points_per_curve
+    for m, muscle in enumerate(muscle_ids):
+        t0 = 0.0
+        for c_index, cycle in enumerate(cycles):
+            for pi, p_kpa in enumerate(protocol.pressures_kPa):
+                for di, d in enumerate(protocol.directions):
+                    time = t0 + protocol.seconds_per_point * np.arange(n_points)
+                    t0 = time[-1] + protocol.seconds_per_point
+                    block = {
+                        "muscle": muscle,
+                        "pressure_kPa": float(p_kpa),
+                        "length_mm": np.round(length_read[m, pi, di], 6),
+                        "l0_mm": protocol.l0_mm,
+                        "contraction_pct": np.round(kappa_true[m, pi, di], 9),
+                        "force_N": np.round(readings[c_index, m, pi, di], 6),
+                        "direction": d,
+                        "time_s": time,
+                    }
+                    if cycle is not None:
+                        block["cycle"] = cycle
+                    frames.append(pd.DataFrame(block))
+    return pd.DataFrame(pd.concat(frames, ignore_index=True))

@@ -1,0 +1,204 @@
+"""The public fitting entry point and its result."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import numpy as np
+import pandas as pd
+
+from .._data._bench import BenchData
+from .._units import KPA_PER_BAR
+from . import _intervals
+from ._batch import FitData, pack
+from ._least_squares import solve, statistics
+from ._spec import ModelSpec, get_model
+
+INTERVAL_KINDS = ("wald", "profile", "bootstrap")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class FitResult:
+    """Fitted constants of one model for every muscle of a batch, with 95% intervals.
+
+    Arrays have a leading muscle axis; constants follow ``param_names``. ``ci95`` holds the
+    Wald interval (the one the CLI table shows); ``ci95_profile`` and ``ci95_bootstrap`` are
+    None unless asked for. ``converged`` is False for a muscle whose solve did not meet its
+    tolerance within the step budget: its constants are still reported, never dropped.
+    """
+
+    model: str
+    param_names: tuple[str, ...]
+    param_units: dict[str, str]
+    muscles: tuple[str | None, ...]
+    theta: np.ndarray
+    se: np.ndarray
+    ci95: np.ndarray  # (M, p, 2), Wald with Student-t
+    ci95_profile: np.ndarray | None
+    ci95_bootstrap: np.ndarray | None
+    covariance: np.ndarray  # (M, p, p) = s²·(JᵀJ)⁻¹
+    n: np.ndarray
+    dof: np.ndarray
+    sse: np.ndarray
+    rmse_N: np.ndarray
+    r: np.ndarray
+    converged: np.ndarray
+    n_steps: np.ndarray
+    solver: str
+    profile_ok: np.ndarray | None = None
+    bootstrap_converged: np.ndarray | None = None
+
+    @property
+    def n_muscles(self) -> int:
+        return self.theta.shape[0]
+
+    def params(self, i: int = 0):
+        """The constants of muscle ``i`` as the model's parameter object (e.g. Sarosi)."""
+        if self.model == "sarosi":
+            from .._models._sarosi import Sarosi
+
+            return Sarosi.from_vector(self.theta[i])
+        raise NotImplementedError(self.model)
+
+    def to_dict(self) -> dict:
+        """The JSON shape of ``pamid fit --json``."""
+        muscles = []
+        for i, muscle in enumerate(self.muscles):
+            params = {}
+            for j, name in enumerate(self.param_names):
+                entry = {
+                    "value": float(self.theta[i, j]),
+                    "ci95": [float(self.ci95[i, j, 0]), float(self.ci95[i, j, 1])],
+                    "se": float(self.se[i, j]),
+                    "unit": self.param_units[name],
+                }
+                if self.ci95_profile is not None:
+                    entry["ci95_profile"] = _pair(self.ci95_profile[i, j])
+                if self.ci95_bootstrap is not None:
+                    entry["ci95_bootstrap"] = _pair(self.ci95_bootstrap[i, j])
+                params[name] = entry
+            muscles.append(
+                {
+                    "muscle": muscle,
+                    "n": int(self.n[i]),
+                    "rmse_N": float(self.rmse_N[i]),
+                    "r": float(self.r[i]),
+                    "converged": bool(self.converged[i]),
+                    "params": params,
+                }
+            )
+        return {
+            "model": self.model,
+            "solver": self.solver,
+            "interval": "wald-t",
+            "muscles": muscles,
+        }
+
+
+def _pair(v):
+    return [None if not np.isfinite(x) else float(x) for x in v]
+
+
+def _curve_ids(frame: pd.DataFrame) -> np.ndarray:
+    """Curve (sweep) of every row: a new curve starts where the cycle, the direction, or the
+    pressure level changes in file order. A pressure level is the pressure rounded to 2% of
+    the file's pressure range, so that sensor noise on a held pressure is one level."""
+    keys = []
+    p = frame["pressure_kPa"].to_numpy()
+    step = max(0.02 * (np.ptp(p) if p.size else 0.0), 1e-9)
+    keys.append(np.round(p / step))
+    for col in ("cycle", "direction"):
+        if col in frame:
+            keys.append(frame[col].to_numpy())
+    stacked = np.stack(keys, axis=1)
+    change = np.ones(len(frame), dtype=bool)
+    change[1:] = np.any(stacked[1:] != stacked[:-1], axis=1)
+    return np.cumsum(change) - 1
+
+
+def bench_to_fit_data(bench: BenchData, model: str = "sarosi") -> FitData:
+    """Pack a loaded bench file into a batch, one lane per muscle."""
+    if model != "sarosi":
+        raise ValueError(f"unknown model {model!r}")
+    groups, curves = [], []
+    for muscle in bench.muscles:
+        f = bench.for_muscle(muscle)
+        x = (f["pressure_kPa"].to_numpy() / KPA_PER_BAR, f["contraction_pct"].to_numpy())
+        groups.append((x, f["force_N"].to_numpy()))
+        curves.append(_curve_ids(f))
+    return pack(groups, curves)
+
+
+def fit_least_squares(
+    data: BenchData | FitData,
+    model: str | ModelSpec = "sarosi",
+    *,
+    solver: str = "gauss-newton",
+    intervals: tuple[str, ...] = ("wald",),
+    n_bootstrap: int = 1000,
+    key: jax.Array | None = None,
+    bounds=None,
+    level: float = 0.95,
+    muscles: tuple[str | None, ...] | None = None,
+) -> FitResult:
+    """Fit a static force model to every muscle of ``data`` in one batched solve.
+
+    Args:
+        data: a loaded bench file (:func:`pamid.load_bench`) or a packed :class:`FitData`.
+        model: "sarosi" (eq. 2.1) or a :class:`ModelSpec`.
+        solver: "gauss-newton" (default: optimistix, from a variable-projection start),
+            "levenberg-marquardt", "variable-projection", "jaxopt-levenberg-marquardt".
+        intervals: any of "wald" (always computed), "profile", "bootstrap".
+        n_bootstrap: bootstrap replicates per muscle (whole curves resampled).
+        key: PRNG key, required for the bootstrap.
+        bounds: optional (lower, upper) arrays of the constants; uses jaxopt's L-BFGS-B.
+        level: coverage of the intervals (0.95).
+    """
+    spec = get_model(model) if isinstance(model, str) else model
+    unknown = set(intervals) - set(INTERVAL_KINDS)
+    if unknown:
+        raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")
+    if isinstance(data, BenchData):
+        names = tuple(m if data.has_muscle_column else None for m in data.muscles)
+        data = bench_to_fit_data(data, spec.name)
+    else:
+        names = muscles if muscles is not None else tuple([None] * data.n_muscles)
+
+    theta, converged, steps = solve(spec, data, solver=solver, bounds=bounds)
+    sse, jtj_inv, corr, n = statistics(spec, theta, data)
+    se, lo, hi, s2, dof = _intervals.wald(theta, jtj_inv, sse, n, level)
+
+    ci_profile = profile_ok = None
+    if "profile" in intervals:
+        plo, phi, profile_ok = _intervals.profile(spec, data, theta, se, s2, sse, dof, level)
+        ci_profile = np.stack([plo, phi], axis=-1)
+    ci_boot = boot_ok = None
+    if "bootstrap" in intervals:
+        if key is None:
+            raise ValueError("the bootstrap needs a PRNG key: pass key=jax.random.key(...)")
+        blo, bhi, _, boot_ok = _intervals.bootstrap(spec, data, theta, key, n_bootstrap, level)
+        ci_boot = np.stack([blo, bhi], axis=-1)
+
+    return FitResult(
+        model=spec.name,
+        param_names=spec.param_names,
+        param_units=spec.param_units,
+        muscles=names,
+        theta=theta,
+        se=se,
+        ci95=np.stack([lo, hi], axis=-1),
+        ci95_profile=ci_profile,
+        ci95_bootstrap=ci_boot,
+        covariance=s2[:, None, None] * jtj_inv,
+        n=n.astype(int),
+        dof=dof,
+        sse=sse,
+        rmse_N=np.sqrt(sse / n),
+        r=corr,
+        converged=converged,
+        n_steps=steps,
+        solver=solver if bounds is None else "jaxopt-lbfgsb",
+        profile_ok=profile_ok,
+        bootstrap_converged=boot_ok,
+    )

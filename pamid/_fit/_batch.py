@@ -1,0 +1,74 @@
+"""Ragged groups of samples (one per muscle) packed into padded arrays with weights.
+
+Every batched computation in pamid sees arrays of shape (M, n_max): M muscles (or
+bootstrap replicates, or synthetic data sets) by the largest sample count, with weight 0
+on the padding. A weight may also be a count (a bootstrap replicate that draws a curve
+twice gives its samples weight 2), which weighted least squares treats exactly as
+repeated rows.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+
+class FitData(NamedTuple):
+    """A batch of muscles for fitting.
+
+    Attributes:
+        x: model inputs, each (M, n), e.g. (pressure_bar, contraction_pct) for Sárosi.
+        y: measured output (force in N), (M, n).
+        w: sample weights, (M, n); 0 marks padding.
+        curve: index of the curve (sweep) each sample belongs to within its muscle,
+            (M, n); −1 on padding. The bootstrap resamples whole curves.
+    """
+
+    x: tuple[Float[Array, "M n"], ...]
+    y: Float[Array, "M n"]
+    w: Float[Array, "M n"]
+    curve: Int[Array, "M n"]
+
+    @property
+    def n_muscles(self) -> int:
+        return self.y.shape[0]
+
+
+def pack(groups, curves=None) -> FitData:
+    """Pack a list of muscles, each ``(x_tuple, y)`` of 1-D arrays, into a padded batch.
+
+    ``curves``, if given, is a list of 1-D integer arrays (curve id of each sample); by
+    default every sample of a muscle is in curve 0.
+    """
+    if not groups:
+        raise ValueError("no muscles to fit")
+    n_x = len(groups[0][0])
+    n_max = max(len(y) for _, y in groups)
+    m = len(groups)
+    xs = np.zeros((n_x, m, n_max))
+    y = np.zeros((m, n_max))
+    w = np.zeros((m, n_max))
+    curve = np.full((m, n_max), -1, dtype=np.int64)
+    for i, (x_i, y_i) in enumerate(groups):
+        n = len(y_i)
+        for j in range(n_x):
+            xs[j, i, :n] = x_i[j]
+            # Padding repeats the first sample so that the model stays finite there.
+            xs[j, i, n:] = x_i[j][0] if n else 0.0
+        y[i, :n] = y_i
+        w[i, :n] = 1.0
+        curve[i, :n] = 0 if curves is None else _dense_ids(curves[i])
+    return FitData(
+        x=tuple(jnp.asarray(a) for a in xs),
+        y=jnp.asarray(y),
+        w=jnp.asarray(w),
+        curve=jnp.asarray(curve),
+    )
+
+
+def _dense_ids(ids) -> np.ndarray:
+    _, inverse = np.unique(np.asarray(ids), return_inverse=True)
+    return inverse.astype(np.int64)

@@ -1,0 +1,165 @@
+"""Batched least squares: every muscle of a batch fitted in one jit-compiled, vmapped solve.
+
+Solver path (measured in ``benchmarks/fit_batch.py``): a variable-projection start puts every
+muscle in the basin of its optimum, then Gauss–Newton (optimistix) converges in a few steps.
+Under ``vmap`` every lane runs until the slowest converges, so what matters for the batch is
+that no lane needs many steps; from the variable-projection start none does.
+Levenberg–Marquardt, jaxopt's Levenberg–Marquardt and pure variable projection are
+available for comparison, and jaxopt's L-BFGS-B for fits with bounds on the constants.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import jaxopt
+import numpy as np
+import optimistix as optx
+
+from ._batch import FitData
+from ._spec import ModelSpec
+from ._variable_projection import sarosi_variable_projection
+
+SOLVERS = (
+    "gauss-newton",
+    "levenberg-marquardt",
+    "variable-projection",
+    "jaxopt-levenberg-marquardt",
+)
+
+
+def residuals(spec: ModelSpec, theta, x, y, w):
+    """Weighted residuals w^½·(model − data) of one muscle."""
+    return jnp.sqrt(w) * (spec.predict(theta, x) - y)
+
+
+def _optx_solver(name, rtol, atol):
+    if name == "gauss-newton":
+        return optx.GaussNewton(rtol=rtol, atol=atol)
+    return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+
+
+@functools.partial(jax.jit, static_argnames=("spec", "solver", "max_steps", "rtol", "atol"))
+def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
+    """Solve every lane from its start; returns theta, success flag and step count per lane."""
+    if solver == "variable-projection":
+        theta, _ = sarosi_variable_projection(x, y, w, n_refine=max_steps)
+        ok = jnp.all(jnp.isfinite(theta), axis=-1)
+        return theta, ok, jnp.full(theta.shape[0], max_steps)
+
+    if solver == "jaxopt-levenberg-marquardt":
+
+        def one(theta0, x, y, w):
+            lm = jaxopt.LevenbergMarquardt(
+                lambda th: residuals(spec, th, x, y, w),
+                stop_criterion="madsen-nielsen",
+                maxiter=max_steps,
+                xtol=rtol,
+                gtol=atol,
+            )
+            out = lm.run(theta0)
+            return out.params, out.state.iter_num < max_steps, out.state.iter_num
+
+        return jax.vmap(one)(theta0, x, y, w)
+
+    def one(theta0, x, y, w):
+        sol = optx.least_squares(
+            lambda th, args: residuals(spec, th, *args),
+            _optx_solver(solver, rtol, atol),
+            theta0,
+            args=(x, y, w),
+            max_steps=max_steps,
+            throw=False,
+        )
+        ok = sol.result == optx.RESULTS.successful
+        return sol.value, ok, sol.stats["num_steps"]
+
+    return jax.vmap(one)(theta0, x, y, w)
+
+
+@functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
+def _solve_bounded(spec, theta0, x, y, w, lower, upper, max_steps):
+    """Bounded fits with jaxopt's L-BFGS-B, in coordinates scaled by the Jacobian at the start."""
+
+    def one(theta0, x, y, w):
+        jac = jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta0)
+        scale = 1.0 / jnp.maximum(jnp.sqrt(jnp.sum(jac**2, axis=0)), 1e-300)
+
+        def objective(u):
+            r = residuals(spec, u * scale, x, y, w)
+            return 0.5 * jnp.sum(r**2)
+
+        solver = jaxopt.LBFGSB(fun=objective, maxiter=max_steps, tol=1e-12)
+        u0 = jnp.clip(theta0, lower, upper) / scale
+        out = solver.run(u0, bounds=(lower / scale, upper / scale))
+        return out.params * scale, out.state.iter_num < max_steps, out.state.iter_num
+
+    return jax.vmap(one)(theta0, x, y, w)
+
+
+@functools.partial(jax.jit, static_argnames=("spec",))
+def _statistics(spec, theta, x, y, w):
+    """SSE, Jacobian-based covariance factor, and the correlation of data and model."""
+
+    def one(theta, x, y, w):
+        r = residuals(spec, theta, x, y, w)
+        jac = jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
+        # (JᵀJ)⁻¹ through the SVD: stable, and honest (large) where J is nearly singular.
+        _, s, vt = jnp.linalg.svd(jac, full_matrices=False)
+        s_inv = jnp.where(s > s[0] * 1e-14, 1.0 / s, jnp.inf)
+        jtj_inv = (vt.T * s_inv**2) @ vt
+        model = spec.predict(theta, x)
+        n = jnp.sum(w)
+        mean_y = jnp.sum(w * y) / n
+        mean_m = jnp.sum(w * model) / n
+        cov_ym = jnp.sum(w * (y - mean_y) * (model - mean_m))
+        corr = cov_ym / jnp.sqrt(jnp.sum(w * (y - mean_y) ** 2) * jnp.sum(w * (model - mean_m) ** 2))
+        return jnp.sum(r**2), jtj_inv, corr, n
+
+    return jax.vmap(one)(theta, x, y, w)
+
+
+def solve(
+    spec: ModelSpec,
+    data: FitData,
+    *,
+    solver: str = "gauss-newton",
+    theta0=None,
+    bounds=None,
+    max_steps: int = 100,
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+):
+    """Fit ``spec`` to every muscle of ``data`` in one compiled call.
+
+    Returns ``(theta, converged, n_steps)`` as NumPy arrays with a leading muscle axis.
+    """
+    if solver not in SOLVERS:
+        raise ValueError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    if solver == "variable-projection" and spec.name != "sarosi":
+        raise ValueError("variable projection is implemented for the Sárosi model only")
+    if theta0 is None:
+        theta0 = spec.start(data.x, data.y, data.w)
+    theta0 = jnp.asarray(theta0, dtype=jnp.float64)
+    if bounds is not None:
+        lower, upper = (jnp.broadcast_to(jnp.asarray(b, float), theta0.shape[-1:]) for b in bounds)
+        if bool(jnp.any(lower > upper)):
+            raise ValueError("every lower bound must be at most its upper bound")
+        theta, ok, steps = _solve_bounded(
+            spec, theta0, data.x, data.y, data.w, lower, upper, max_steps=max(max_steps, 500)
+        )
+    else:
+        theta, ok, steps = _solve_batch(
+            spec, solver, theta0, data.x, data.y, data.w, max_steps, rtol, atol
+        )
+    theta = np.asarray(theta)
+    ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
+    return theta, ok, np.asarray(steps)
+
+
+def statistics(spec: ModelSpec, theta, data: FitData):
+    """Per muscle: SSE, (JᵀJ)⁻¹, correlation of model and data, and the sample count."""
+    sse, jtj_inv, corr, n = _statistics(spec, jnp.asarray(theta), data.x, data.y, data.w)
+    return np.asarray(sse), np.asarray(jtj_inv), np.asarray(corr), np.asarray(n)

@@ -1,0 +1,155 @@
+"""Variable projection for Sárosi eq. 2.1: the exact fit for a fixed a3, and the start values.
+
+With a3 fixed, eq. 2.1 is linear in the other five constants: F = Φ(a3)·β with columns
+[p·e, e, κ·p, p, 1], e = exp(a3·κ), β = (a1, a2, a4, a5, a6). The least-squares β(a3) is
+a 5×5 solve, so the whole problem reduces to one dimension, S(a3) = min_β ‖w^½(F − Φβ)‖².
+We scan S on a grid of a3 for every muscle at once and refine the best point by successive
+parabolic interpolation. This gives start values in the basin of the global optimum without
+any user guess, and is itself a complete solver (``solver="variable-projection"``).
+
+The grid is in s = a3·κ_span (κ_span the largest contraction in the muscle's data), so it
+adapts to the data: s from −30 (the exponential has died out within the first percent) to
++3; s near 0 is skipped, where the exponential is indistinguishable from the linear terms.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+_S_GRID = jnp.concatenate([-jnp.geomspace(30.0, 0.05, 20), jnp.geomspace(0.05, 3.0, 4)])
+
+
+def _design(a3, p, k):
+    e = jnp.exp(a3 * k)
+    return jnp.stack([p * e, e, k * p, p, jnp.ones_like(p)], axis=-1)
+
+
+def _linear_solve(a3, p, k, y, w, accurate=True):
+    """β(a3) and S(a3) for one muscle.
+
+    ``accurate``: weighted least squares through a column-scaled QR (used for the answer).
+    Otherwise the 5×5 normal equations, equilibrated and solved by Cholesky: several times
+    cheaper, accurate enough to rank grid points and refine a start (used in the scan).
+    """
+    sw = jnp.sqrt(w)
+    if accurate:
+        phi = _design(a3, p, k) * sw[:, None]
+        scale = jnp.sqrt(jnp.sum(phi**2, axis=0))
+        scale = jnp.where(scale > 0, scale, 1.0)
+        q, r = jnp.linalg.qr(phi / scale)
+        z = jax.scipy.linalg.solve_triangular(r, q.T @ (sw * y), lower=False)
+    else:
+        # Gram entries as elementwise products and sums: far faster under vmap on the CPU
+        # than a batch of small matrix products.
+        e = jnp.exp(a3 * k)
+        cols = [w * p * e, w * e, w * k * p, w * p, w]  # w·φ_j
+        raw = [p * e, e, k * p, p, jnp.ones_like(p)]  # φ_j
+        upper = {(i, j): jnp.sum(cols[i] * raw[j]) for i in range(5) for j in range(i, 5)}
+        diag = jnp.stack([upper[i, i] for i in range(5)])
+        scale = jnp.sqrt(jnp.where(diag > 0, diag, 1.0))
+        gram = jnp.stack(
+            [jnp.stack([upper[min(i, j), max(i, j)] for j in range(5)]) for i in range(5)]
+        ) / jnp.outer(scale, scale)
+        rhs = jnp.stack([jnp.sum(c * y) for c in cols]) / scale
+        z = _small_cholesky_solve(gram + 1e-13 * jnp.eye(5), rhs)
+        # S = yᵀWy − zᵀ·rhs: no second pass over the samples; the cancellation costs a few
+        # digits of S, harmless for ranking grid points.
+        sse = jnp.sum(w * y * y) - jnp.dot(z, rhs)
+        return z / scale, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
+    beta = z / scale
+    resid = sw * y - phi @ beta
+    sse = jnp.sum(resid**2)
+    return beta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
+
+
+def _small_cholesky_solve(a, b):
+    """Solve a·z = b for a small symmetric positive definite ``a``, unrolled.
+
+    Batched LAPACK calls on 5×5 matrices cost microseconds each on the CPU; written out as
+    scalar arithmetic, the solve becomes a few dozen elementwise operations across the batch.
+    """
+    n = a.shape[0]
+    low = [[None] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = a[i, j] - sum(low[i][m] * low[j][m] for m in range(j))
+            if i == j:
+                low[i][i] = jnp.sqrt(jnp.maximum(acc, 1e-300))
+            else:
+                low[i][j] = acc / low[j][j]
+    z = [None] * n
+    for i in range(n):  # forward: L·u = b
+        z[i] = (b[i] - sum(low[i][m] * z[m] for m in range(i))) / low[i][i]
+    for i in reversed(range(n)):  # backward: Lᵀ·z = u
+        z[i] = (z[i] - sum(low[m][i] * z[m] for m in range(i + 1, n))) / low[i][i]
+    return jnp.stack(z)
+
+
+def _theta(a3, beta):
+    return jnp.stack([beta[0], beta[1], a3, beta[2], beta[3], beta[4]])
+
+
+def _one_muscle(p, k, y, w, n_refine):
+    span = jnp.max(jnp.where(w > 0, jnp.abs(k), 0.0))
+    span = jnp.where(span > 0, span, 1.0)
+    grid = _S_GRID / span
+    sse = jax.vmap(lambda a: _linear_solve(a, p, k, y, w, accurate=False)[1])(grid)
+    i = jnp.clip(jnp.argmin(sse), 1, grid.shape[0] - 2)
+    # Bracket around the best grid point, then successive parabolic interpolation
+    # (safeguarded: a step that leaves the bracket falls back to golden section).
+    lo, mid, hi = grid[i - 1], grid[i], grid[i + 1]
+
+    def reduced(a3):
+        return _linear_solve(a3, p, k, y, w, accurate=False)[1]
+
+    def refine(_, state):
+        lo, mid, hi, f_lo, f_mid, f_hi = state
+        num = (mid - lo) ** 2 * (f_mid - f_hi) - (mid - hi) ** 2 * (f_mid - f_lo)
+        den = (mid - lo) * (f_mid - f_hi) - (mid - hi) * (f_mid - f_lo)
+        x = mid - 0.5 * num / jnp.where(den == 0, 1e-300, den)
+        golden = jnp.where(hi - mid > mid - lo, mid + 0.382 * (hi - mid), mid - 0.382 * (mid - lo))
+        ok = jnp.isfinite(x) & (x > lo) & (x < hi) & (jnp.abs(x - mid) > 1e-15 * jnp.abs(mid))
+        x = jnp.where(ok, x, golden)
+        f_x = reduced(x)
+        better = f_x < f_mid
+        left = x < mid
+        # Keep a bracket (lo, hi) around the best point found so far.
+        new_lo, f_new_lo = (
+            jnp.where(better, jnp.where(left, lo, mid), jnp.where(left, x, lo)),
+            jnp.where(better, jnp.where(left, f_lo, f_mid), jnp.where(left, f_x, f_lo)),
+        )
+        new_hi, f_new_hi = (
+            jnp.where(better, jnp.where(left, mid, hi), jnp.where(left, hi, x)),
+            jnp.where(better, jnp.where(left, f_mid, f_hi), jnp.where(left, f_hi, f_x)),
+        )
+        return (new_lo, jnp.where(better, x, mid), new_hi, f_new_lo, jnp.minimum(f_x, f_mid),
+                f_new_hi)
+
+    state = (lo, mid, hi, sse[i - 1], sse[i], sse[i + 1])
+    lo, mid, hi, _, _, _ = jax.lax.fori_loop(0, n_refine, refine, state)
+    beta, sse_best = _linear_solve(mid, p, k, y, w)
+    return _theta(mid, beta), sse_best
+
+
+@functools.partial(jax.jit, static_argnames=("n_refine",))
+def sarosi_variable_projection(x, y, w, n_refine: int = 40):
+    """Fit eq. 2.1 to a batch of muscles by variable projection.
+
+    Args:
+        x: (pressure_bar, contraction_pct), each of shape (M, n).
+        y: force in N, shape (M, n). w: sample weights (0 for padding), shape (M, n).
+        n_refine: parabolic/golden refinement steps after the grid scan.
+
+    Returns:
+        theta (M, 6) ordered a1…a6, and the residual sum of squares (M,).
+    """
+    p, k = x
+    return jax.vmap(_one_muscle, in_axes=(0, 0, 0, 0, None))(p, k, y, w, n_refine)
+
+
+def sarosi_variable_projection_start(x, y, w):
+    """Start values for the batched solvers: a short variable-projection solve."""
+    return sarosi_variable_projection(x, y, w, n_refine=6)[0]

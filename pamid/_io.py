@@ -1,0 +1,151 @@
+"""Atomic writing of output files (reports, tables, figures).
+
+Every writer here puts the content into a temporary file in the destination's own directory
+and then renames it over the destination with :func:`os.replace`, which is atomic on POSIX
+and Windows when both paths are on one file system. A reader therefore sees either the old
+file or the complete new one, never a half-written file; if writing fails, the temporary
+file is removed and an existing destination is left untouched. Parent directories are
+created as needed.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "refuse_overwrite_input",
+    "save_figure_atomic",
+    "write_atomic",
+    "write_bytes_atomic",
+    "write_frame_atomic",
+    "write_text_atomic",
+]
+
+PARQUET_SUFFIXES = (".parquet", ".pq")
+
+_umask_cache: int | None = None
+
+
+def _umask() -> int:
+    """The process umask (read once; os.umask can only be read by setting it)."""
+    global _umask_cache
+    if _umask_cache is None:
+        old = os.umask(0o022)
+        os.umask(old)
+        _umask_cache = old
+    return _umask_cache
+
+
+def write_atomic(path: str | os.PathLike, write_fn: Callable[[str], Any]) -> Path:
+    """Write ``path`` atomically: ``write_fn(tmp_path)`` writes the content to a temporary file.
+
+    ``write_fn`` receives the temporary file's path as a string and must write the whole
+    content there (it may open, truncate and close it as it likes). On success the temporary
+    file is flushed to disk and renamed to ``path``; if ``write_fn`` raises, the temporary
+    file is deleted and the exception propagates, leaving no partial file behind. A new file
+    gets the usual permissions (0666 less the umask); an existing file keeps its mode.
+    Returns ``path`` as a :class:`pathlib.Path`.
+    """
+    dest = Path(path)
+    if dest.is_dir():
+        raise IsADirectoryError(f"{dest}: is a directory, cannot write a file there")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent)
+    os.close(fd)
+    try:
+        write_fn(tmp)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        try:
+            mode = dest.stat().st_mode & 0o7777
+        except FileNotFoundError:
+            mode = 0o666 & ~_umask()
+        os.chmod(tmp, mode)
+        os.replace(tmp, dest)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return dest
+
+
+def write_text_atomic(path: str | os.PathLike, text: str, *, encoding: str = "utf-8") -> Path:
+    """Write ``text`` to ``path`` atomically (``encoding`` defaults to UTF-8)."""
+    data = text.encode(encoding)
+    return write_bytes_atomic(path, data)
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+
+    return write_atomic(path, write)
+
+
+def write_frame_atomic(path: str | os.PathLike, frame, *, index: bool = False) -> Path:
+    """Write a pandas DataFrame to ``path`` atomically.
+
+    The format follows the extension: ``.parquet`` or ``.pq`` gives Parquet (via pyarrow),
+    anything else CSV (comma-separated, UTF-8, floats written so that they read back exactly).
+    The index is left out unless ``index=True``.
+    """
+    parquet = Path(path).suffix.lower() in PARQUET_SUFFIXES
+
+    def write(tmp: str) -> None:
+        if parquet:
+            frame.to_parquet(tmp, index=index, engine="pyarrow")
+        else:
+            frame.to_csv(tmp, index=index, encoding="utf-8", lineterminator="\n")
+
+    return write_atomic(path, write)
+
+
+def save_figure_atomic(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
+    """Save a matplotlib figure to ``path`` atomically (PNG unless the extension says else).
+
+    The image format is taken from the extension of ``path`` (``.png`` when there is none),
+    because the temporary file's own name does not carry it. Further keyword arguments go to
+    :meth:`matplotlib.figure.Figure.savefig` (e.g. ``dpi=150``).
+    """
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    savefig_kwargs.setdefault("format", fmt)
+
+    def write(tmp: str) -> None:
+        fig.savefig(tmp, **savefig_kwargs)
+
+    return write_atomic(path, write)
+
+
+def refuse_overwrite_input(
+    out_path: str | os.PathLike, input_paths: Iterable[str | os.PathLike]
+) -> None:
+    """Raise ValueError if ``out_path`` is one of ``input_paths``.
+
+    Paths are compared after resolving symbolic links and ``..``; where both files exist,
+    hard links to the same file are caught too. Inputs that do not exist are compared by
+    their resolved path only.
+    """
+    out = Path(out_path)
+    out_resolved = out.resolve()
+    for inp in input_paths:
+        inp_path = Path(inp)
+        same = inp_path.resolve() == out_resolved
+        if not same and out.exists() and inp_path.exists():
+            try:
+                same = os.path.samefile(out, inp_path)
+            except OSError:
+                same = False
+        if same:
+            raise ValueError(
+                f"refusing to write {out}: it is the input file {inp_path}; "
+                "choose another output path"
+            )

@@ -1,0 +1,724 @@
+"""Tests for the bench-data loader (pamid._data._bench), units and atomic output writers."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from decimal import Decimal
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pamid._data._bench import BenchData, CensoredRowsWarning, load_bench
+from pamid._errors import BenchDataError
+from pamid._io import (
+    refuse_overwrite_input,
+    save_figure_atomic,
+    write_atomic,
+    write_bytes_atomic,
+    write_frame_atomic,
+    write_text_atomic,
+)
+from pamid._units import (
+    ATMOSPHERE_KPA,
+    KPA_PER_BAR,
+    KPA_PER_PA,
+    KPA_PER_PSI,
+    pressure_text_to_kPa,
+    pressure_to_kPa,
+)
+
+MARTENS = Path("/work/shared/data/martens_dmsp10_250.csv")
+
+BASIC = """\
+muscle,pressure_kPa,contraction_pct,force_N
+A,100,0,150.5
+A,100,5,120.25
+A,200,10,200
+B,300,15,250
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "bench.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def csv_rows(header: str, rows: list[str]) -> str:
+    return "\n".join([header, *rows]) + "\n"
+
+
+def raises(path, match, **kwargs) -> BenchDataError:
+    with pytest.raises(BenchDataError, match=match) as info:
+        load_bench(path, **kwargs)
+    return info.value
+
+
+# ----------------------------------------------------------------------------------------
+# Units
+# ----------------------------------------------------------------------------------------
+
+
+def test_unit_constants():
+    assert KPA_PER_BAR == 100.0
+    assert KPA_PER_PA == 1e-3
+    assert ATMOSPHERE_KPA == 101.325
+    assert KPA_PER_PSI == pytest.approx(4.4482216152605 / 0.0254**2 / 1000, rel=1e-15)
+
+
+def test_pressure_to_kPa_units():
+    assert pressure_to_kPa([2.5], "bar")[0] == 250.0
+    assert pressure_to_kPa(250_000.0, "Pa") == 250.0
+    assert pressure_to_kPa([1.0], "psi")[0] == KPA_PER_PSI
+    np.testing.assert_array_equal(pressure_to_kPa([1.0, 2.0], "kPa"), [1.0, 2.0])
+    with pytest.raises(ValueError, match="unknown pressure unit 'atm'.*kPa, bar, Pa, psi"):
+        pressure_to_kPa([1.0], "atm")
+    with pytest.raises(ValueError, match="unknown pressure unit"):
+        pressure_text_to_kPa(["1"], "mmHg")
+
+
+def test_pressure_text_conversion_is_exact():
+    assert pressure_text_to_kPa(["2.505"], "bar")[0] == 250.5
+    assert pressure_text_to_kPa(["250500"], "Pa")[0] == 250.5
+    assert pressure_text_to_kPa(["1"], "psi")[0] == KPA_PER_PSI
+
+
+# ----------------------------------------------------------------------------------------
+# Loading: positive cases
+# ----------------------------------------------------------------------------------------
+
+
+def test_basic_csv(tmp_path):
+    data = load_bench(write(tmp_path, BASIC))
+    assert isinstance(data, BenchData)
+    assert data.path == str(tmp_path / "bench.csv")
+    assert data.has_muscle_column
+    assert data.muscles == ("A", "B")
+    assert data.covariates == ()
+    assert data.n_censored == 0
+    assert data.pressure_unit_in_file == "kPa"
+    assert data.l0_mm == {"A": None, "B": None}
+    frame = data.frame
+    assert list(frame.columns) == [
+        "muscle",
+        "pressure_kPa",
+        "contraction_pct",
+        "force_N",
+        "source_row",
+    ]
+    for name in ("pressure_kPa", "contraction_pct", "force_N"):
+        assert frame[name].dtype == np.float64
+    assert frame["force_N"].tolist() == [150.5, 120.25, 200.0, 250.0]
+    assert frame["source_row"].tolist() == [1, 2, 3, 4]
+    assert len(data.for_muscle("B")) == 1
+    assert data.for_muscle("A")["contraction_pct"].tolist() == [0.0, 5.0, 10.0]
+    with pytest.raises(KeyError, match="no muscle 'C'"):
+        data.for_muscle("C")
+
+
+def test_no_muscle_column(tmp_path):
+    path = write(tmp_path, "pressure_kPa,contraction_pct,force_N\n100,0,10\n200,5,20\n")
+    data = load_bench(path)
+    assert not data.has_muscle_column
+    assert data.muscles == ("muscle",)
+    assert data.frame["muscle"].tolist() == ["muscle", "muscle"]
+
+
+KPA = ["0", "12.3", "250.5", "312.7", "600", "-50.25"]
+BAR = ["0", "0.123", "2.505", "3.127", "6", "-0.5025"]
+PA = ["0", "12300", "250500", "312700", "600000", "-50250"]
+
+
+@pytest.mark.parametrize(("unit", "cells"), [("kPa", KPA), ("bar", BAR), ("Pa", PA)])
+def test_pressure_units_convert_exactly(tmp_path, unit, cells):
+    rows = [f"{p},5,10" for p in cells]
+    path = write(tmp_path, csv_rows(f"pressure_{unit},contraction_pct,force_N", rows))
+    data = load_bench(path)
+    assert data.pressure_unit_in_file == unit
+    assert data.frame["pressure_kPa"].tolist() == [float(p) for p in KPA]
+
+
+def test_pressure_psi(tmp_path):
+    cells = ["1", "10", "14.5", "87.0226"]
+    rows = [f"{p},5,10" for p in cells]
+    path = write(tmp_path, csv_rows("pressure_psi,contraction_pct,force_N", rows))
+    data = load_bench(path)
+    got = data.frame["pressure_kPa"].to_numpy()
+    assert got[0] == KPA_PER_PSI
+    exact = [float(Decimal(c) * Decimal("4.4482216152605") / Decimal("0.64516")) for c in cells]
+    assert got.tolist() == exact
+    np.testing.assert_allclose(got, np.array(cells, dtype=float) * KPA_PER_PSI, rtol=1e-15)
+
+
+def test_length_with_l0_column(tmp_path):
+    text = csv_rows(
+        "muscle,pressure_kPa,length_mm,l0_mm,force_N",
+        ["A,100,250,250,10", "A,100,200,250,20", "B,100,90,100,30"],
+    )
+    data = load_bench(write(tmp_path, text))
+    assert data.frame["contraction_pct"].tolist() == [0.0, 20.0, 10.0]
+    assert data.l0_mm == {"A": 250.0, "B": 100.0}
+    assert data.frame["length_mm"].tolist() == [250.0, 200.0, 90.0]
+    assert data.frame["l0_mm"].tolist() == [250.0, 250.0, 100.0]
+
+
+def test_length_with_l0_argument(tmp_path):
+    text = csv_rows("pressure_kPa,length_mm,force_N", ["100,250,10", "100,225,20"])
+    data = load_bench(write(tmp_path, text), l0_mm=250)
+    assert data.frame["contraction_pct"].tolist() == [0.0, 10.0]
+    assert data.l0_mm == {"muscle": 250.0}
+
+
+def test_contraction_preferred_over_length(tmp_path):
+    text = csv_rows(
+        "pressure_kPa,length_mm,contraction_pct,force_N", ["100,250,1.5,10", "100,240,4,20"]
+    )
+    data = load_bench(write(tmp_path, text))
+    assert data.frame["contraction_pct"].tolist() == [1.5, 4.0]
+    assert data.frame["length_mm"].tolist() == [250.0, 240.0]
+
+
+def test_multi_muscle_order_and_string_ids(tmp_path):
+    rows = ["B,100,1,10", "007,100,1,10", "B,200,2,20", "C,100,1,10", "007,300,3,30"]
+    data = load_bench(
+        write(tmp_path, csv_rows("muscle,pressure_kPa,contraction_pct,force_N", rows))
+    )
+    assert data.muscles == ("B", "007", "C")
+    assert data.for_muscle("007")["pressure_kPa"].tolist() == [100.0, 300.0]
+    assert data.for_muscle("007")["source_row"].tolist() == [2, 5]
+
+
+def test_optional_columns_and_covariates(tmp_path):
+    header = (
+        "muscle,time_s,pressure_bar,contraction_pct,force_N,direction,temperature_C,cycle,"
+        "velocity_mm_s,supply_flow,note"
+    )
+    rows = [
+        "A,0.0,1,0,10,1,21.5,1,0.0,3,start",
+        "A,0.5,2,5,20,1,21.6,1,2.5,4,",
+        "A,1.0,2,4,18,-1,21.7,2,-1.0,5,slow leak",
+    ]
+    data = load_bench(write(tmp_path, csv_rows(header, rows)))
+    assert data.covariates == ("velocity_mm_s", "supply_flow")
+    frame = data.frame
+    assert list(frame.columns) == [
+        "muscle",
+        "pressure_kPa",
+        "contraction_pct",
+        "force_N",
+        "time_s",
+        "direction",
+        "temperature_C",
+        "cycle",
+        "velocity_mm_s",
+        "supply_flow",
+        "note",
+        "source_row",
+    ]
+    assert frame["direction"].tolist() == [1, 1, -1]
+    assert frame["cycle"].tolist() == [1, 1, 2]
+    assert frame["supply_flow"].dtype == np.float64
+    assert frame["note"].tolist() == ["start", "", "slow leak"]
+    assert frame["pressure_kPa"].tolist() == [100.0, 200.0, 200.0]
+
+
+def test_time_increases_per_muscle_interleaved(tmp_path):
+    rows = ["A,0,100,1,10", "B,0,100,1,10", "A,1,100,1,10", "B,0.5,100,1,10"]
+    data = load_bench(
+        write(tmp_path, csv_rows("muscle,time_s,pressure_kPa,contraction_pct,force_N", rows))
+    )
+    assert data.frame["time_s"].tolist() == [0.0, 0.0, 1.0, 0.5]
+
+
+CENSORED = csv_rows(
+    "muscle,pressure_kPa,contraction_pct,force_N",
+    ["A,100,0,50", "A,100,10,0", "A,200,0,100", "A,200,20,0", "A,200,10,-0.0", "A,300,5,80"],
+)
+
+
+def test_censored_rows_dropped_with_warning(tmp_path):
+    path = write(tmp_path, CENSORED)
+    with pytest.warns(CensoredRowsWarning, match=r"dropped 3 censored rows \(force_N exactly 0\)"):
+        data = load_bench(path)
+    assert data.n_censored == 3
+    assert len(data.frame) == 3
+    assert data.frame["source_row"].tolist() == [1, 3, 6]
+    assert data.frame["force_N"].tolist() == [50.0, 100.0, 80.0]
+    assert data.frame.index.tolist() == [0, 1, 2]
+
+
+def test_censored_rows_kept_on_request(tmp_path):
+    path = write(tmp_path, CENSORED)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        data = load_bench(path, keep_censored=True)
+    assert data.n_censored == 0
+    assert len(data.frame) == 6
+    assert data.frame["source_row"].tolist() == [1, 2, 3, 4, 5, 6]
+
+
+def test_muscle_with_only_censored_rows_is_left_out(tmp_path):
+    text = csv_rows("muscle,pressure_kPa,contraction_pct,force_N", ["A,100,0,5", "B,100,0,0"])
+    with pytest.warns(CensoredRowsWarning, match="dropped 1 censored rows.*'B'"):
+        data = load_bench(write(tmp_path, text))
+    assert data.muscles == ("A",)
+
+
+@pytest.mark.skipif(not MARTENS.exists(), reason="shared Martens data file not available")
+def test_martens_file():
+    with pytest.warns(CensoredRowsWarning, match="dropped 45 censored rows"):
+        data = load_bench(MARTENS)
+    assert data.n_censored == 45
+    assert len(data.frame) == 85 - 45
+    assert data.muscles == ("DMSP-10-250",)
+    assert (data.frame["force_N"] != 0).all()
+    kept = load_bench(MARTENS, keep_censored=True)
+    assert len(kept.frame) == 85
+    np.testing.assert_allclose(
+        kept.frame["contraction_pct"], 100 * (250 - kept.frame["length_mm"]) / 250, atol=0.05
+    )
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".pq"])
+def test_parquet_round_trip(tmp_path, suffix):
+    original = pd.DataFrame(
+        {
+            "muscle": ["A", "A", "B", "B"],
+            "pressure_bar": [1.0, 2.5, 3.0, 0.0],
+            "contraction_pct": [0.0, 10.0, 5.0, 12.0],
+            "force_N": [10.0, 0.0, 30.5, 40.0],
+            "cycle": [1, 1, 2, 2],
+            "humidity": [0.4, 0.5, 0.5, 0.6],
+            "note": ["x", "y", None, "z"],
+        }
+    )
+    path = tmp_path / f"bench{suffix}"
+    original.to_parquet(path)
+    with pytest.warns(CensoredRowsWarning, match="dropped 1 censored"):
+        data = load_bench(path)
+    assert data.pressure_unit_in_file == "bar"
+    assert data.muscles == ("A", "B")
+    assert data.covariates == ("humidity",)
+    assert data.frame["pressure_kPa"].tolist() == [100.0, 300.0, 0.0]
+    assert data.frame["source_row"].tolist() == [1, 3, 4]
+    assert data.frame["cycle"].tolist() == [1, 2, 2]
+    kept = load_bench(path, keep_censored=True)
+    pd.testing.assert_series_equal(
+        kept.frame["force_N"], original["force_N"], check_names=False, check_index=False
+    )
+
+    # and back: writing the frame as Parquet and loading it again gives the same frame
+    out = tmp_path / "again.parquet"
+    write_frame_atomic(out, kept.frame.drop(columns="source_row"))
+    again = load_bench(out, keep_censored=True)
+    pd.testing.assert_frame_equal(again.frame, kept.frame)
+
+
+def test_csv_round_trip_through_write_frame(tmp_path):
+    data = load_bench(write(tmp_path, BASIC))
+    out = tmp_path / "out.csv"
+    write_frame_atomic(out, data.frame.drop(columns="source_row"))
+    again = load_bench(out)
+    pd.testing.assert_frame_equal(again.frame, data.frame)
+
+
+def test_semicolon_and_blank_lines(tmp_path):
+    text = "\nmuscle;pressure_kPa;contraction_pct;force_N\nA;100;0;10\n\nA;100;5;oops\n"
+    err = raises(write(tmp_path, text), "'oops' is not a number")
+    assert (err.column, err.row, err.line) == ("force_N", 2, 5)
+
+
+# ----------------------------------------------------------------------------------------
+# Loading: errors
+# ----------------------------------------------------------------------------------------
+
+
+def test_missing_file(tmp_path):
+    err = raises(tmp_path / "nope.csv", "nope.csv: file not found")
+    assert err.path == str(tmp_path / "nope.csv")
+    raises(tmp_path / "nope.parquet", "file not found")
+
+
+def test_directory(tmp_path):
+    (tmp_path / "d.csv").mkdir()
+    raises(tmp_path / "d.csv", "is a directory")
+
+
+@pytest.mark.parametrize("name", ["empty.csv", "empty.parquet"])
+def test_empty_file(tmp_path, name):
+    (tmp_path / name).write_bytes(b"")
+    raises(tmp_path / name, r"empty \(0 bytes\)")
+
+
+def test_only_blank_lines(tmp_path):
+    raises(write(tmp_path, "\n\n  \n"), "only blank lines")
+
+
+def test_header_without_rows(tmp_path):
+    raises(write(tmp_path, "pressure_kPa,contraction_pct,force_N\n"), "no data rows")
+
+
+def test_parquet_without_rows(tmp_path):
+    frame = pd.DataFrame({"pressure_kPa": [], "contraction_pct": [], "force_N": []})
+    frame.to_parquet(tmp_path / "e.parquet")
+    raises(tmp_path / "e.parquet", "no data rows")
+
+
+def test_binary_bytes(tmp_path):
+    path = tmp_path / "noise.csv"
+    path.write_bytes(bytes(np.random.default_rng(0).integers(0, 256, 2000, dtype=np.uint8)))
+    raises(path, "not a table: the file holds binary data")
+    png = tmp_path / "image.csv"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + b"\x01" * 50)
+    raises(png, "binary data")
+
+
+def test_parquet_with_csv_extension(tmp_path):
+    path = tmp_path / "data.csv"
+    pd.DataFrame({"pressure_kPa": [1.0]}).to_parquet(path)
+    raises(path, "Parquet file, not CSV")
+
+
+def test_corrupt_parquet(tmp_path):
+    path = write(tmp_path, BASIC, name="bench.parquet")
+    raises(path, "cannot read it as Parquet")
+
+
+def test_text_without_recognisable_columns(tmp_path):
+    path = write(tmp_path, "Dear diary,\ntoday the muscle worked.\n", name="notes.txt")
+    err = raises(
+        path,
+        r"none of the required columns.*pressure_kPa.*force_N.*contraction_pct.*"
+        r"Columns found: Dear diary",
+    )
+    assert err.column is None
+
+
+def test_missing_required_column(tmp_path):
+    err = raises(
+        write(tmp_path, "muscle,pressure_kPa,contraction_pct\nA,1,2\n"),
+        r"missing required column: force_N\. Columns found: muscle, pressure_kPa, "
+        r"contraction_pct",
+    )
+    assert err.column == "force_N"
+    err = raises(
+        write(tmp_path, "pressure_kPa,force_N\n1,2\n"), "missing required column: contraction_pct"
+    )
+    assert err.column == "contraction_pct"
+    raises(write(tmp_path, "force_N,contraction_pct\n1,2\n"), "missing required column: pressure")
+
+
+@pytest.mark.parametrize(
+    ("column", "accepted"),
+    [
+        ("pressure_atm", "kPa, bar, Pa, psi"),
+        ("force_kN", "N"),
+        ("force_lbf", "N"),
+        ("time_ms", "s"),
+        ("temperature_F", "C"),
+        ("contraction_frac", "pct"),
+        ("length_cm", "mm"),
+        ("l0_m", "mm"),
+        ("velocity_m_s", "mm_s"),
+    ],
+)
+def test_unknown_unit(tmp_path, column, accepted):
+    text = csv_rows(f"pressure_kPa,contraction_pct,force_N,{column}", ["1,2,3,4"])
+    if column.startswith("pressure"):
+        text = csv_rows(f"{column},contraction_pct,force_N", ["1,2,3"])
+    err = raises(write(tmp_path, text), f"unknown unit .*accepted units: {accepted}")
+    assert err.column == column
+    assert f"column '{column}'" in str(err)
+
+
+@pytest.mark.parametrize(
+    ("column", "right"), [("pressure_kpa", "pressure_kPa"), ("Force_N", "force_N")]
+)
+def test_unit_case_matters(tmp_path, column, right):
+    text = csv_rows("pressure_kPa,contraction_pct,force_N", ["1,2,3"]).replace(right, column)
+    err = raises(write(tmp_path, text), f"case-sensitive: name the column {right}")
+    assert err.column == column
+
+
+def test_quantity_without_unit(tmp_path):
+    text = csv_rows("pressure,contraction_pct,force_N", ["1,2,3"])
+    err = raises(write(tmp_path, text), "no unit in the column name.*kPa, bar, Pa, psi")
+    assert err.column == "pressure"
+
+
+def test_two_pressure_units(tmp_path):
+    text = csv_rows("pressure_kPa,pressure_bar,contraction_pct,force_N", ["100,1,2,3"])
+    err = raises(write(tmp_path, text), "more than one pressure column.*ambiguous")
+    assert err.column == "pressure_bar"
+
+
+def test_duplicate_column_csv(tmp_path):
+    text = csv_rows("pressure_kPa,force_N,contraction_pct,force_N", ["100,1,2,3"])
+    err = raises(write(tmp_path, text), r"appears twice in the header \(columns 2 and 4\)")
+    assert err.column == "force_N"
+
+
+def test_duplicate_column_parquet(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_arrays(
+        [pa.array([100.0]), pa.array([1.0]), pa.array([2.0]), pa.array([3.0])],
+        names=["pressure_kPa", "force_N", "contraction_pct", "force_N"],
+    )
+    pq.write_table(table, tmp_path / "dup.parquet")
+    err = raises(tmp_path / "dup.parquet", "appears twice")
+    assert err.column == "force_N"
+
+
+def test_non_numeric_cell_reports_row_and_line(tmp_path):
+    rows = [f"{100 + i},5,{10 + i}" for i in range(10)]
+    rows[6] = "106,5,abc"
+    rows[8] = "108,5,xyz"
+    err = raises(
+        write(tmp_path, csv_rows("pressure_kPa,contraction_pct,force_N", rows)),
+        r"column 'force_N', row 7 \(line 8\): 'abc' is not a number",
+    )
+    assert (err.column, err.row, err.line) == ("force_N", 7, 8)
+
+
+def test_first_offending_row_across_columns(tmp_path):
+    rows = ["100,5,10", "100,5,bad", "100,x,10"]
+    err = raises(write(tmp_path, csv_rows("pressure_kPa,contraction_pct,force_N", rows)), "bad")
+    assert (err.column, err.row) == ("force_N", 2)
+
+
+def test_empty_cell(tmp_path):
+    rows = ["100,5,10", "100,,10"]
+    err = raises(
+        write(tmp_path, csv_rows("pressure_kPa,contraction_pct,force_N", rows)), "empty cell"
+    )
+    assert (err.column, err.row, err.line) == ("contraction_pct", 2, 3)
+
+
+@pytest.mark.parametrize(
+    ("cell", "what"), [("nan", "NaN"), ("NaN", "NaN"), ("inf", "infinite"), ("-inf", "infinite")]
+)
+def test_nan_and_inf(tmp_path, cell, what):
+    rows = ["100,5,10", "100,5,11", f"100,5,{cell}"]
+    err = raises(write(tmp_path, csv_rows("pressure_kPa,contraction_pct,force_N", rows)), what)
+    assert (err.column, err.row) == ("force_N", 3)
+
+
+def test_nan_in_parquet(tmp_path):
+    frame = pd.DataFrame(
+        {"pressure_kPa": [1.0, 2.0, 3.0], "contraction_pct": [1, 2, 3], "force_N": [1, np.nan, 3]}
+    )
+    frame.to_parquet(tmp_path / "nan.parquet")
+    err = raises(tmp_path / "nan.parquet", r"row 2: (NaN|missing value)")
+    assert (err.column, err.row, err.line) == ("force_N", 2, None)
+
+
+def test_nan_in_covariate(tmp_path):
+    rows = ["100,5,10,1", "100,5,11,nan"]
+    text = csv_rows("pressure_kPa,contraction_pct,force_N,humidity", rows)
+    err = raises(write(tmp_path, text), "NaN")
+    assert (err.column, err.row) == ("humidity", 2)
+
+
+def test_negative_absolute_pressure(tmp_path):
+    rows = ["0,5,10", "-1.01325,5,10", "-1.1,5,10"]
+    text = csv_rows("pressure_bar,contraction_pct,force_N", rows)
+    err = raises(write(tmp_path, text), r"gauge pressure -1.1 bar .*negative absolute pressure")
+    assert (err.column, err.row) == ("pressure_bar", 3)
+
+
+@pytest.mark.parametrize("value", ["60", "-15", "50.01"])
+def test_contraction_out_of_range(tmp_path, value):
+    rows = ["100,5,10", f"100,{value},10"]
+    text = csv_rows("pressure_kPa,contraction_pct,force_N", rows)
+    err = raises(write(tmp_path, text), r"outside the physical range -10 % to 50 %")
+    assert (err.column, err.row) == ("contraction_pct", 2)
+
+
+def test_contraction_from_length_out_of_range(tmp_path):
+    text = csv_rows("pressure_kPa,length_mm,force_N", ["100,250,10", "100,100,10"])
+    err = raises(
+        write(tmp_path, text), "contraction of 60 %, outside the physical range", l0_mm=250
+    )
+    assert (err.column, err.row) == ("length_mm", 2)
+
+
+def test_length_not_positive(tmp_path):
+    text = csv_rows("pressure_kPa,length_mm,l0_mm,force_N", ["100,250,250,10", "100,0,250,10"])
+    err = raises(write(tmp_path, text), "length_mm must be a positive length")
+    assert (err.column, err.row) == ("length_mm", 2)
+
+
+def test_l0_not_positive(tmp_path):
+    text = csv_rows("pressure_kPa,length_mm,l0_mm,force_N", ["100,250,-250,10"])
+    err = raises(write(tmp_path, text), "l0_mm must be a positive length")
+    assert (err.column, err.row) == ("l0_mm", 1)
+    text = csv_rows("pressure_kPa,length_mm,force_N", ["100,250,10"])
+    err = raises(write(tmp_path, text), "l0_mm argument must be a positive length", l0_mm=0)
+    assert err.column is None
+
+
+def test_missing_l0(tmp_path):
+    text = csv_rows("pressure_kPa,length_mm,force_N", ["100,250,10"])
+    err = raises(write(tmp_path, text), "add an l0_mm column or pass .*--l0-mm")
+    assert err.column == "length_mm"
+
+
+def test_l0_varies_within_muscle(tmp_path):
+    rows = ["A,100,250,250,10", "B,100,90,100,10", "A,100,240,260,10"]
+    text = csv_rows("muscle,pressure_kPa,length_mm,l0_mm,force_N", rows)
+    err = raises(write(tmp_path, text), "constant within a muscle")
+    assert (err.column, err.row) == ("l0_mm", 3)
+    assert "'A'" in str(err)
+
+
+def test_l0_column_disagrees_with_argument(tmp_path):
+    text = csv_rows("pressure_kPa,length_mm,l0_mm,force_N", ["100,240,250,10"])
+    err = raises(write(tmp_path, text), "l0_mm argument is 300", l0_mm=300)
+    assert err.column == "l0_mm"
+
+
+@pytest.mark.parametrize("value", ["0", "2", "0.5", "up"])
+def test_bad_direction(tmp_path, value):
+    rows = ["100,5,10,1", "100,5,10,-1", f"100,5,10,{value}"]
+    text = csv_rows("pressure_kPa,contraction_pct,force_N,direction", rows)
+    match = "not a number" if value == "up" else r"direction must be \+1 .* or -1"
+    err = raises(write(tmp_path, text), match)
+    assert (err.column, err.row) == ("direction", 3)
+
+
+def test_cycle_not_whole(tmp_path):
+    text = csv_rows("pressure_kPa,contraction_pct,force_N,cycle", ["100,5,10,1", "100,5,10,1.5"])
+    err = raises(write(tmp_path, text), "cycle must be a whole number")
+    assert (err.column, err.row) == ("cycle", 2)
+
+
+@pytest.mark.parametrize("bad_time", ["0.5", "1.0"])
+def test_time_not_increasing(tmp_path, bad_time):
+    rows = ["A,0,100,1,10", "B,5,100,1,10", "A,1.0,100,1,10", f"A,{bad_time},100,1,10"]
+    text = csv_rows("muscle,time_s,pressure_kPa,contraction_pct,force_N", rows)
+    err = raises(write(tmp_path, text), r"not later than 1.0 s on row 3 of muscle 'A'")
+    assert (err.column, err.row, err.line) == ("time_s", 4, 5)
+
+
+def test_ragged_row(tmp_path):
+    text = csv_rows("pressure_kPa,contraction_pct,force_N", ["100,5,10", "100,5"])
+    err = raises(write(tmp_path, text), "2 cells but the header .* names 3 columns")
+    assert (err.row, err.line) == (2, 3)
+
+
+def test_trailing_delimiters_are_tolerated(tmp_path):
+    text = "pressure_kPa,contraction_pct,force_N,\n100,5,10,\n200,5,10,,\n"
+    assert len(load_bench(write(tmp_path, text)).frame) == 2
+
+
+def test_all_rows_censored(tmp_path):
+    text = csv_rows("pressure_kPa,contraction_pct,force_N", ["100,5,0", "200,5,0"])
+    raises(write(tmp_path, text), "all 2 data rows have force_N exactly 0")
+
+
+def test_empty_muscle_id(tmp_path):
+    text = csv_rows("muscle,pressure_kPa,contraction_pct,force_N", ["A,100,5,1", ",100,5,1"])
+    err = raises(write(tmp_path, text), "empty muscle id")
+    assert (err.column, err.row) == ("muscle", 2)
+
+
+def test_reserved_column_name(tmp_path):
+    text = csv_rows("pressure_kPa,contraction_pct,force_N,source_row", ["100,5,1,1"])
+    err = raises(write(tmp_path, text), "reserved")
+    assert err.column == "source_row"
+
+
+def test_error_is_a_value_error(tmp_path):
+    with pytest.raises(ValueError):
+        load_bench(tmp_path / "missing.csv")
+
+
+# ----------------------------------------------------------------------------------------
+# Atomic output writers
+# ----------------------------------------------------------------------------------------
+
+
+def test_write_text_atomic_creates_parents_and_replaces(tmp_path):
+    path = tmp_path / "a" / "b" / "report.txt"
+    write_text_atomic(path, "first\n")
+    assert path.read_text() == "first\n"
+    write_text_atomic(path, "second\n")
+    assert path.read_text() == "second\n"
+    assert os.listdir(path.parent) == ["report.txt"]
+
+
+def test_write_bytes_atomic(tmp_path):
+    path = write_bytes_atomic(tmp_path / "blob.bin", b"\x00\x01\x02")
+    assert path.read_bytes() == b"\x00\x01\x02"
+
+
+def test_failed_write_leaves_nothing_behind(tmp_path):
+    def half_then_fail(tmp: str) -> None:
+        with open(tmp, "w") as fh:
+            fh.write("partial")
+        raise RuntimeError("disk on fire")
+
+    target = tmp_path / "out" / "result.csv"
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        write_atomic(target, half_then_fail)
+    assert not target.exists()
+    assert os.listdir(target.parent) == []
+
+    target.write_text("old content")
+    with pytest.raises(RuntimeError):
+        write_atomic(target, half_then_fail)
+    assert target.read_text() == "old content"
+    assert os.listdir(target.parent) == ["result.csv"]
+
+
+def test_new_file_permissions_follow_umask(tmp_path):
+    old = os.umask(0o022)
+    try:
+        path = write_text_atomic(tmp_path / "p.txt", "x")
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
+
+
+def test_write_frame_atomic_csv_and_parquet(tmp_path):
+    frame = pd.DataFrame({"a": [1.0, 0.1 + 0.2], "b": ["x", "y"]})
+    for name in ("f.csv", "f.parquet", "f.pq"):
+        path = write_frame_atomic(tmp_path / name, frame)
+        back = pd.read_csv(path) if name.endswith(".csv") else pd.read_parquet(path)
+        assert back["a"].tolist() == frame["a"].tolist()
+        assert back["b"].tolist() == ["x", "y"]
+
+
+def test_save_figure_atomic(tmp_path):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2, 2))
+    fig.add_subplot().plot([0, 1], [0, 1])
+    path = save_figure_atomic(fig, tmp_path / "figs" / "fit.png", dpi=50)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    with pytest.raises(ValueError):
+        save_figure_atomic(fig, tmp_path / "figs" / "bad.nosuchformat")
+    assert os.listdir(tmp_path / "figs") == ["fit.png"]
+
+
+def test_refuse_overwrite_input(tmp_path):
+    inp = write(tmp_path, BASIC)
+    with pytest.raises(ValueError, match="refusing to write .*input file"):
+        refuse_overwrite_input(inp, [inp])
+    with pytest.raises(ValueError, match="refusing"):
+        refuse_overwrite_input(tmp_path / "sub" / ".." / "bench.csv", [str(inp)])
+    link = tmp_path / "link.csv"
+    link.symlink_to(inp)
+    with pytest.raises(ValueError, match="refusing"):
+        refuse_overwrite_input(link, [inp])
+    hard = tmp_path / "hard.csv"
+    os.link(inp, hard)
+    with pytest.raises(ValueError, match="refusing"):
+        refuse_overwrite_input(hard, [inp])
+    refuse_overwrite_input(tmp_path / "out.csv", [inp, tmp_path / "missing.csv"])
