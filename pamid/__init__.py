@@ -11,7 +11,17 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from ._data._bench import BenchData as BenchData
+from ._data._bench import CensoredRowsWarning as CensoredRowsWarning
+from ._data._bench import load_bench as load_bench
+from ._data._virtual_bench import SarosiProtocol as SarosiProtocol
+from ._data._virtual_bench import simulate_sarosi_bench as simulate_sarosi_bench
 from ._errors import BenchDataError as BenchDataError
+from ._fit._api import FitResult as FitResult
+from ._fit._api import bench_to_fit_data as bench_to_fit_data
+from ._fit._api import fit_least_squares as fit_least_squares
+from ._fit._batch import FitData as FitData
+from ._fit._batch import pack as pack_muscles
 from ._models._hysteresis import hysteresis_damping as hysteresis_damping
 from ._models._hysteresis import sarosi_force_integral as sarosi_force_integral
 from ._models._sarosi import TABLE_3_1 as TABLE_3_1
@@ -23,17 +33,5 @@ from ._models._sarosi import sarosi_pressure_for_force as sarosi_pressure_for_fo
 from ._models._sarosi import sarosi_stiffness as sarosi_stiffness
 from ._models._sarosi import sarosi_stiffness_eq_2_9 as sarosi_stiffness_eq_2_9
 from ._models._sarosi import table_3_1 as table_3_1
-
-
-from ._data._bench import BenchData as BenchData
-from ._data._bench import CensoredRowsWarning as CensoredRowsWarning
-from ._data._bench import load_bench as load_bench
-from ._data._virtual_bench import SarosiProtocol as SarosiProtocol
-from ._data._virtual_bench import simulate_sarosi_bench as simulate_sarosi_bench
-from ._fit._api import FitResult as FitResult
-from ._fit._api import bench_to_fit_data as bench_to_fit_data
-from ._fit._api import fit_least_squares as fit_least_squares
-from ._fit._batch import FitData as FitData
-from ._fit._batch import pack as pack_muscles
 
 __version__ = importlib.metadata.version("pamid")

@@ -1,5 +1,276 @@
-"""Command-line interface (work in progress)."""
+"""The ``pamid`` command: ``pamid fit`` and ``pamid demo``.
+
+Bad input ends with a one-line message that names the file, column and row, and exit code 2;
+no traceback. ``--json`` prints exactly one JSON object on stdout; warnings and progress go
+to stderr. Compiled code is cached on disk (``PAMID_CACHE_DIR``, default
+``~/.cache/pamid/jax``), so the second call of a command skips compilation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+EXIT_BAD_INPUT = 2
 
 
-def main(argv=None):
-    raise SystemExit("pamid: the command-line interface is being written")
+def _enable_compilation_cache() -> None:
+    import jax
+
+    cache = os.environ.get("PAMID_CACHE_DIR") or str(Path.home() / ".cache" / "pamid" / "jax")
+    try:
+        Path(cache).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return  # an unwritable home is no reason to fail; we just compile every time
+    jax.config.update("jax_compilation_cache_dir", cache)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def _stage(message: str, quiet: bool) -> None:
+    if not quiet:
+        print(f"[pamid] {message}", file=sys.stderr, flush=True)
+
+
+def _format_table(result, published=None) -> str:
+    """Constants with Wald 95% intervals (and profile/bootstrap/published where present)."""
+    lines = []
+    for i, muscle in enumerate(result.muscles):
+        status = "converged" if result.converged[i] else "NOT CONVERGED"
+        head = f"muscle {muscle}" if muscle is not None else "muscle"
+        lines.append(
+            f"{head}: n = {result.n[i]}, RMSE = {result.rmse_N[i]:.4g} N, "
+            f"R = {result.r[i]:.6f}, {status} ({result.n_steps[i]} steps, {result.solver})"
+        )
+        cols = ["constant", "unit", "value", "95% low", "95% high"]
+        if result.ci95_profile is not None:
+            cols += ["profile low", "profile high"]
+        if result.ci95_bootstrap is not None:
+            cols += ["bootstrap low", "bootstrap high"]
+        if published is not None:
+            cols += ["published", "pub. low", "pub. high"]
+        rows = [cols]
+        for j, name in enumerate(result.param_names):
+            row = [name, result.param_units[name], f"{result.theta[i, j]:.6g}",
+                   f"{result.ci95[i, j, 0]:.6g}", f"{result.ci95[i, j, 1]:.6g}"]
+            for ci in (result.ci95_profile, result.ci95_bootstrap):
+                if ci is not None:
+                    row += [f"{ci[i, j, 0]:.6g}", f"{ci[i, j, 1]:.6g}"]
+            if published is not None:
+                pub = published[name]
+                row += [f"{pub['value']:.6g}", f"{pub['ci95'][0]:.6g}", f"{pub['ci95'][1]:.6g}"]
+            rows.append(row)
+        widths = [max(len(r[c]) for r in rows) for c in range(len(cols))]
+        for r in rows:
+            lines.append("  " + "  ".join(v.rjust(w) for v, w in zip(r, widths)))
+        lines.append("")
+    lines.append("95% low/high: Wald intervals with Student-t (n − 6 dof), as Excel reports them.")
+    if result.ci95_profile is not None:
+        lines.append("profile: profile-likelihood (profile-t) intervals.")
+    if result.ci95_bootstrap is not None:
+        lines.append("bootstrap: percentile intervals from resampling whole curves.")
+    return "\n".join(lines)
+
+
+def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
+    from . import _plot
+
+    written = []
+    for i, muscle in enumerate(bench.muscles[:max_plots]):
+        frame = bench.for_muscle(muscle)
+        name = _safe(muscle) if bench.has_muscle_column else "muscle"
+        label = muscle if bench.has_muscle_column else Path(bench.path).name
+        title = f"Sárosi eq. 2.1 fit — {label}"
+        _plot.plot_fit(frame, result.theta[i], out / f"fit_{name}.png", title)
+        _plot.plot_residuals(frame, result.theta[i], out / f"residuals_{name}.png",
+                             f"Residuals — {title}")
+        written += [f"fit_{name}.png", f"residuals_{name}.png"]
+    if result.n_muscles > 1:
+        _plot.plot_rmse_histogram(result.rmse_N, out / "rmse_histogram.png",
+                                  f"Fit RMSE across {result.n_muscles} muscles")
+        written.append("rmse_histogram.png")
+    return written
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name))
+
+
+def _cmd_fit(args) -> int:
+    import jax
+
+    from ._data._bench import load_bench
+    from ._fit._api import fit_least_squares
+    from ._io import refuse_overwrite_input, write_text_atomic
+
+    quiet = args.json
+    t0 = time.perf_counter()
+    bench = load_bench(args.data, l0_mm=args.l0_mm, keep_censored=args.keep_censored)
+    intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
+    if args.bootstrap and "bootstrap" not in intervals:
+        intervals += ("bootstrap",)
+    _stage(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
+           quiet)
+    _stage(f"fitting ({args.solver}; intervals: {', '.join(intervals)})", quiet)
+    result = fit_least_squares(
+        bench,
+        args.model,
+        solver=args.solver,
+        intervals=intervals,
+        n_bootstrap=args.bootstrap or 1000,
+        key=jax.random.key(args.seed),
+    )
+    payload = result.to_dict()
+    payload["source"] = str(args.data)
+    payload["n_censored_dropped"] = bench.n_censored
+    payload["seconds"] = round(time.perf_counter() - t0, 3)
+    if args.out:
+        out = Path(args.out)
+        refuse_overwrite_input(out / "fit.json", [args.data])
+        _stage(f"writing plots to {out}", quiet)
+        payload["plots"] = _write_plots(bench, result, out, args.max_plots)
+        write_text_atomic(out / "fit.json", json.dumps(payload, indent=2) + "\n")
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(_format_table(result))
+        if not result.converged.all():
+            bad = [m for m, ok in zip(result.muscles, result.converged) if not ok]
+            print(f"WARNING: {len(bad)} muscle(s) did not converge: {bad[:10]}")
+    return 0 if result.converged.all() else 1
+
+
+def _cmd_demo(args) -> int:
+    import jax
+
+    from ._data._bench import load_bench
+    from ._data._default import default_bench_path, default_protocol
+    from ._fit._api import fit_least_squares
+    from ._fit._batch import pack
+    from ._io import write_text_atomic
+    from ._models._hysteresis import hysteresis_damping
+    from ._models._sarosi import TABLE_3_1, TABLE_3_1_L0_MM, Sarosi
+    from ._units import KPA_PER_BAR
+
+    out = Path(args.out)
+    path = default_bench_path()
+    protocol = default_protocol()
+    print(f"pamid demo — bundled virtual-bench data set: {path.name}")
+    print(f"  simulated by pamid's virtual bench from Sárosi Table 3-1 (DMSP-20-400N, "
+          f"l0 = {TABLE_3_1_L0_MM:g} mm), protocol: pressures {list(protocol.pressures_kPa)} kPa, "
+          f"{protocol.points_per_curve} points per sweep, both directions, {protocol.repeats} "
+          f"repeats averaged, noise {protocol.noise_sd_N} N, hysteresis "
+          f"±{protocol.hysteresis_N_per_bar} N/bar.")
+    bench = load_bench(path)
+    t0 = time.perf_counter()
+    result = fit_least_squares(bench, intervals=("wald", "profile", "bootstrap"),
+                               n_bootstrap=1000, key=jax.random.key(args.seed))
+    print(f"\nFit of both branches together ({time.perf_counter() - t0:.2f} s, compilation "
+          "included), beside Table 3-1:\n")
+    print(_format_table(result, published=TABLE_3_1))
+
+    # Hysteresis branches and damping, Sárosi eq. 2.3–2.10, at 400 kPa with 50 kg.
+    frame = bench.frame
+    branches = {}
+    for d, name in ((-1, "upper (extending)"), (1, "lower (contracting)")):
+        sub = frame[frame["direction"] == d]
+        data = pack([((sub["pressure_kPa"].to_numpy() / KPA_PER_BAR,
+                       sub["contraction_pct"].to_numpy()), sub["force_N"].to_numpy())])
+        branches[name] = fit_least_squares(data).theta[0]
+    p_bar, mass = 4.0, 50.0
+    k_hi = float(frame.loc[(frame.pressure_kPa == 400.0), "contraction_pct"].max())
+    damping = hysteresis_damping(
+        Sarosi.from_vector(branches["upper (extending)"]),
+        Sarosi.from_vector(branches["lower (contracting)"]),
+        p_bar, 0.0, k_hi, 12.5, TABLE_3_1_L0_MM / 1000.0, mass,
+    )
+    damping = {k: float(v) for k, v in damping.items()}
+    print(f"Hysteresis damping at {p_bar * 100:g} kPa, loop over κ = 0 … {k_hi:.2f} %, "
+          f"m = {mass:g} kg, stiffness at κ = 12.5 % (Sárosi eq. 2.3–2.10):")
+    for key, value in damping.items():
+        print(f"  {key:>22s} = {value:.6g}")
+
+    out.mkdir(parents=True, exist_ok=True)
+    plots = _write_plots(bench, result, out, 1)
+    summary = result.to_dict()
+    summary["source"] = str(path)
+    summary["hysteresis_damping_400kPa_50kg"] = damping
+    summary["published_table_3_1"] = {k: {"value": v["value"], "ci95": list(v["ci95"])}
+                                      for k, v in TABLE_3_1.items()}
+    summary["plots"] = plots
+    write_text_atomic(out / "demo.json", json.dumps(summary, indent=2) + "\n")
+    print(f"\nPlots and demo.json written to {out}/: {', '.join(plots)}")
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="pamid", description="System identification for pneumatic artificial muscles."
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    fit = sub.add_parser("fit", help="fit a static force model to bench data (CSV or Parquet)")
+    fit.add_argument("data", help="bench file: pressure_kPa|bar|Pa|psi, force_N, contraction_pct "
+                                  "or length_mm (+ l0_mm), optional muscle, direction, …")
+    fit.add_argument("--model", default="sarosi", choices=["sarosi"],
+                     help="force model (Sárosi eq. 2.1)")
+    fit.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    fit.add_argument("--out", help="folder for plots (PNG) and fit.json")
+    fit.add_argument("--l0-mm", type=float, dest="l0_mm",
+                     help="nominal length in mm when the file gives length_mm without l0_mm")
+    fit.add_argument("--keep-censored", action="store_true",
+                     help="keep rows whose force is exactly 0 (dropped by default)")
+    fit.add_argument("--solver", default="gauss-newton",
+                     choices=["gauss-newton", "levenberg-marquardt", "variable-projection",
+                              "jaxopt-levenberg-marquardt"])
+    fit.add_argument("--intervals", default="wald,profile",
+                     help="comma-separated: wald, profile, bootstrap (default wald,profile)")
+    fit.add_argument("--bootstrap", type=int, default=0, metavar="B",
+                     help="also bootstrap whole curves with B replicates per muscle")
+    fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap")
+    fit.add_argument("--max-plots", type=int, default=6, help="muscles to plot (default 6)")
+    fit.set_defaults(func=_cmd_fit)
+
+    demo = sub.add_parser("demo", help="fit the bundled virtual-bench data set, beside Table 3-1")
+    demo.add_argument("--out", default="demo-out", help="folder for plots and demo.json")
+    demo.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap")
+    demo.set_defaults(func=_cmd_demo)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from ._errors import BenchDataError
+
+    _enable_compilation_cache()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            warnings.showwarning = _show_warning
+            return args.func(args)
+    except BenchDataError as exc:
+        print(f"pamid: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except ValueError as exc:  # bad options (a solver name, an output path onto an input)
+        if os.environ.get("PAMID_DEBUG"):
+            raise
+        print(f"pamid: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"pamid: warning: {message}", file=sys.stderr)
+
+
+def console_main() -> None:
+    """Entry point of the installed ``pamid`` command."""
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -140,7 +140,7 @@ def simulate_sarosi_bench(
     # Set points: 30 evenly spaced positions per sweep; the extending sweep retraces them.
     u = np.linspace(0.0, 1.0, protocol.points_per_curve)
     kappa_set = ends[:, :, None] * u  # (M, P, K)
-    n_dir, n_rep = len(protocol.directions), protocol.repeats
+    n_rep = protocol.repeats
     kappa_sweeps = np.stack(
         [kappa_set if d == 1 else kappa_set[..., ::-1] for d in protocol.directions], axis=2
     )  # (M, P, D, K)

@@ -14,7 +14,6 @@ import functools
 
 import jax
 import jax.numpy as jnp
-import jaxopt
 import numpy as np
 import optimistix as optx
 
@@ -50,6 +49,7 @@ def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
         return theta, ok, jnp.full(theta.shape[0], max_steps)
 
     if solver == "jaxopt-levenberg-marquardt":
+        import jaxopt  # imported here: unmaintained upstream, and it warns on import
 
         def one(theta0, x, y, w):
             lm = jaxopt.LevenbergMarquardt(
@@ -83,6 +83,8 @@ def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
 def _solve_bounded(spec, theta0, x, y, w, lower, upper, max_steps):
     """Bounded fits with jaxopt's L-BFGS-B, in coordinates scaled by the Jacobian at the start."""
 
+    import jaxopt  # jaxopt adds what optimistix lacks here: box bounds (L-BFGS-B)
+
     def one(theta0, x, y, w):
         jac = jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta0)
         scale = 1.0 / jnp.maximum(jnp.sqrt(jnp.sum(jac**2, axis=0)), 1e-300)
@@ -115,7 +117,8 @@ def _statistics(spec, theta, x, y, w):
         mean_y = jnp.sum(w * y) / n
         mean_m = jnp.sum(w * model) / n
         cov_ym = jnp.sum(w * (y - mean_y) * (model - mean_m))
-        corr = cov_ym / jnp.sqrt(jnp.sum(w * (y - mean_y) ** 2) * jnp.sum(w * (model - mean_m) ** 2))
+        var_y = jnp.sum(w * (y - mean_y) ** 2)
+        corr = cov_ym / jnp.sqrt(var_y * jnp.sum(w * (model - mean_m) ** 2))
         return jnp.sum(r**2), jtj_inv, corr, n
 
     return jax.vmap(one)(theta, x, y, w)
