@@ -68,9 +68,9 @@ class FitResult:
             params = {}
             for j, name in enumerate(self.param_names):
                 entry = {
-                    "value": float(self.theta[i, j]),
-                    "ci95": [float(self.ci95[i, j, 0]), float(self.ci95[i, j, 1])],
-                    "se": float(self.se[i, j]),
+                    "value": _num(self.theta[i, j]),
+                    "ci95": _pair(self.ci95[i, j]),
+                    "se": _num(self.se[i, j]),
                     "unit": self.param_units[name],
                 }
                 if self.ci95_profile is not None:
@@ -82,8 +82,8 @@ class FitResult:
                 {
                     "muscle": muscle,
                     "n": int(self.n[i]),
-                    "rmse_N": float(self.rmse_N[i]),
-                    "r": float(self.r[i]),
+                    "rmse_N": _num(self.rmse_N[i]),
+                    "r": _num(self.r[i]),
                     "converged": bool(self.converged[i]),
                     "params": params,
                 }
@@ -96,8 +96,13 @@ class FitResult:
         }
 
 
+def _num(x):
+    """A float for JSON: NaN and ±inf (not valid JSON) become null."""
+    return float(x) if np.isfinite(x) else None
+
+
 def _pair(v):
-    return [None if not np.isfinite(x) else float(x) for x in v]
+    return [_num(x) for x in v]
 
 
 def _curve_ids(frame: pd.DataFrame) -> np.ndarray:
@@ -166,8 +171,11 @@ def fit_least_squares(
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
 
     theta, converged, steps = solve(spec, data, solver=solver, bounds=bounds)
-    sse, jtj_inv, corr, n = statistics(spec, theta, data)
+    sse, jtj_inv, corr, n, full_rank = statistics(spec, theta, data)
     se, lo, hi, s2, dof = _intervals.wald(theta, jtj_inv, sse, n, level)
+    # A fit whose constants are not all determined by the data (rank-deficient Jacobian, or
+    # no degrees of freedom left) is not reported as converged, whatever the solver says.
+    converged = converged & full_rank & np.all(np.isfinite(se), axis=-1)
 
     ci_profile = profile_ok = None
     if "profile" in intervals:

@@ -44,8 +44,9 @@ def _optx_solver(name, rtol, atol):
 def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
     """Solve every lane from its start; returns theta, success flag and step count per lane."""
     if solver == "variable-projection":
-        theta, _ = sarosi_variable_projection(x, y, w, n_refine=max_steps)
-        ok = jnp.all(jnp.isfinite(theta), axis=-1)
+        theta, _, width = sarosi_variable_projection(x, y, w, n_refine=max_steps)
+        # Converged: the bracket around a3 has shrunk to the tolerance.
+        ok = jnp.all(jnp.isfinite(theta), axis=-1) & (width < jnp.maximum(rtol, 1e-8))
         return theta, ok, jnp.full(theta.shape[0], max_steps)
 
     if solver == "jaxopt-levenberg-marquardt":
@@ -96,7 +97,9 @@ def _solve_bounded(spec, theta0, x, y, w, lower, upper, max_steps):
         solver = jaxopt.LBFGSB(fun=objective, maxiter=max_steps, tol=1e-12)
         u0 = jnp.clip(theta0, lower, upper) / scale
         out = solver.run(u0, bounds=(lower / scale, upper / scale))
-        return out.params * scale, out.state.iter_num < max_steps, out.state.iter_num
+        # Scaled coordinates can land one rounding unit outside a bound: clip back.
+        theta = jnp.clip(out.params * scale, lower, upper)
+        return theta, out.state.iter_num < max_steps, out.state.iter_num
 
     return jax.vmap(one)(theta0, x, y, w)
 
@@ -119,7 +122,8 @@ def _statistics(spec, theta, x, y, w):
         cov_ym = jnp.sum(w * (y - mean_y) * (model - mean_m))
         var_y = jnp.sum(w * (y - mean_y) ** 2)
         corr = cov_ym / jnp.sqrt(var_y * jnp.sum(w * (model - mean_m) ** 2))
-        return jnp.sum(r**2), jtj_inv, corr, n
+        full_rank = s[-1] > s[0] * 1e-14
+        return jnp.sum(r**2), jtj_inv, corr, n, full_rank
 
     return jax.vmap(one)(theta, x, y, w)
 
@@ -163,6 +167,7 @@ def solve(
 
 
 def statistics(spec: ModelSpec, theta, data: FitData):
-    """Per muscle: SSE, (JᵀJ)⁻¹, correlation of model and data, and the sample count."""
-    sse, jtj_inv, corr, n = _statistics(spec, jnp.asarray(theta), data.x, data.y, data.w)
-    return np.asarray(sse), np.asarray(jtj_inv), np.asarray(corr), np.asarray(n)
+    """Per muscle: SSE, (JᵀJ)⁻¹, correlation of model and data, sample count, and whether
+    the Jacobian has full rank at the optimum (the constants are identifiable)."""
+    out = _statistics(spec, jnp.asarray(theta), data.x, data.y, data.w)
+    return tuple(np.asarray(a) for a in out)

@@ -92,7 +92,7 @@ def _theta(a3, beta):
     return jnp.stack([beta[0], beta[1], a3, beta[2], beta[3], beta[4]])
 
 
-def _one_muscle(p, k, y, w, n_refine):
+def _one_muscle(p, k, y, w, n_refine, accurate):
     span = jnp.max(jnp.where(w > 0, jnp.abs(k), 0.0))
     span = jnp.where(span > 0, span, 1.0)
     grid = _S_GRID / span
@@ -103,7 +103,9 @@ def _one_muscle(p, k, y, w, n_refine):
     lo, mid, hi = grid[i - 1], grid[i], grid[i + 1]
 
     def reduced(a3):
-        return _linear_solve(a3, p, k, y, w, accurate=False)[1]
+        # The normal-equation S(a3) loses digits to cancellation near the optimum: good
+        # enough for a start, not for the answer of the variable-projection solver.
+        return _linear_solve(a3, p, k, y, w, accurate=accurate)[1]
 
     def refine(_, state):
         lo, mid, hi, f_lo, f_mid, f_hi = state
@@ -131,25 +133,28 @@ def _one_muscle(p, k, y, w, n_refine):
     state = (lo, mid, hi, sse[i - 1], sse[i], sse[i + 1])
     lo, mid, hi, _, _, _ = jax.lax.fori_loop(0, n_refine, refine, state)
     beta, sse_best = _linear_solve(mid, p, k, y, w)
-    return _theta(mid, beta), sse_best
+    return _theta(mid, beta), sse_best, (hi - lo) / jnp.maximum(jnp.abs(mid), 1e-300)
 
 
-@functools.partial(jax.jit, static_argnames=("n_refine",))
-def sarosi_variable_projection(x, y, w, n_refine: int = 40):
+@functools.partial(jax.jit, static_argnames=("n_refine", "accurate"))
+def sarosi_variable_projection(x, y, w, n_refine: int = 40, accurate: bool = True):
     """Fit eq. 2.1 to a batch of muscles by variable projection.
 
     Args:
         x: (pressure_bar, contraction_pct), each of shape (M, n).
         y: force in N, shape (M, n). w: sample weights (0 for padding), shape (M, n).
         n_refine: parabolic/golden refinement steps after the grid scan.
+        accurate: evaluate S(a3) during the refinement through QR (exact to rounding)
+            rather than the cheaper normal equations (enough for start values).
 
     Returns:
-        theta (M, 6) ordered a1…a6, and the residual sum of squares (M,).
+        theta (M, 6) ordered a1…a6, the residual sum of squares (M,), and the relative
+        width of the final bracket around a3 (M,).
     """
     p, k = x
-    return jax.vmap(_one_muscle, in_axes=(0, 0, 0, 0, None))(p, k, y, w, n_refine)
+    return jax.vmap(_one_muscle, in_axes=(0, 0, 0, 0, None, None))(p, k, y, w, n_refine, accurate)
 
 
 def sarosi_variable_projection_start(x, y, w):
     """Start values for the batched solvers: a short variable-projection solve."""
-    return sarosi_variable_projection(x, y, w, n_refine=6)[0]
+    return sarosi_variable_projection(x, y, w, n_refine=6, accurate=False)[0]

@@ -110,16 +110,18 @@ def sarosi_stiffness(
 ) -> Float[Array, "..."]:
     """Stiffness in N/m, k = dF/dl, by automatic differentiation of eq. 2.1 (Sárosi eq. 2.7).
 
+    The derivative is taken by JAX (forward mode), not from the closed form; the tests check
+    it against :func:`sarosi_stiffness_eq_2_9`.
+
     Equal to :func:`sarosi_stiffness_eq_2_9`; see there for the units and the sign.
     Broadcasts over its arguments.
     """
-    p, k, l0 = jnp.broadcast_arrays(
-        jnp.asarray(pressure_bar, float), jnp.asarray(contraction_pct, float), jnp.asarray(l0_m)
-    )
-    slope = jax.vmap(jax.grad(sarosi_force, argnums=2), in_axes=(None, 0, 0))
-
-    flat = slope(params, p.reshape(-1), k.reshape(-1)).reshape(p.shape)
-    return -100.0 / l0 * flat
+    p = jnp.asarray(pressure_bar, float)
+    k = jnp.asarray(contraction_pct, float)
+    # Forward mode (one tangent on κ) differentiates elementwise and broadcasts over the
+    # inputs and over constants with leading batch axes alike.
+    _, slope = jax.jvp(lambda kk: sarosi_force(params, p, kk), (k,), (jnp.ones_like(k),))
+    return -100.0 / jnp.asarray(l0_m) * slope
 
 
 def sarosi_pressure_for_force(

@@ -1,0 +1,94 @@
+"""Shared fixtures: float64, the constants of Sárosi Table 3-1, and a small virtual bench.
+
+pamid switches float64 on at import (fitting needs it); the assertion below fails the whole
+run early if that ever stops being true, instead of letting tolerances fail one by one.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+import pytest
+
+import pamid
+
+assert jax.config.jax_enable_x64, "pamid must switch on float64 at import"
+assert jnp.asarray(1.0).dtype == jnp.float64
+
+PARAM_NAMES = ("a1", "a2", "a3", "a4", "a5", "a6")
+
+# Sárosi, Table 3-1 (DMSP-20-400N, l0 = 400 mm), typed in from the summary, not from pamid:
+# value, lower and upper 95% limits.
+TABLE_3_1_PRINTED = {
+    "a1": (-4.35572689, -5.775448554, -2.936005225),
+    "a2": (281.2237983, 278.065759, 284.3818376),
+    "a3": (-0.32866293, -0.335236188, -0.322089671),
+    "a4": (-9.27034945, -9.348917301, -9.191781595),
+    "a5": (302.2010663, 300.3018044, 304.1003281),
+    "a6": (-263.691854, -268.3566557, -259.0270514),
+}
+
+
+@pytest.fixture(scope="session")
+def theta31() -> np.ndarray:
+    """Table 3-1 constants as a NumPy vector (a1, …, a6)."""
+    return np.array([TABLE_3_1_PRINTED[name][0] for name in PARAM_NAMES])
+
+
+@pytest.fixture(scope="session")
+def ci31() -> np.ndarray:
+    """Table 3-1 95% intervals, shape (6, 2)."""
+    return np.array([TABLE_3_1_PRINTED[name][1:] for name in PARAM_NAMES])
+
+
+@pytest.fixture(scope="session")
+def sarosi31(theta31) -> pamid.Sarosi:
+    """Table 3-1 constants as a :class:`pamid.Sarosi`."""
+    return pamid.Sarosi(*theta31)
+
+
+class SmallBench(NamedTuple):
+    """Three muscles on the virtual bench, Sárosi's protocol (default noise 2 N)."""
+
+    theta: np.ndarray  # (3, 6) true constants
+    frame: pd.DataFrame  # as simulate_sarosi_bench wrote it
+    bench: pamid.BenchData  # the same table written to CSV and loaded back
+    data: pamid.FitData  # packed for fitting, one lane per muscle
+    groups: list  # per muscle: ((pressure_bar, contraction_pct), force_N), unpadded
+
+
+def frame_groups(frame: pd.DataFrame) -> list:
+    """Split a virtual-bench table into per-muscle ((p_bar, κ_pct), F_N) arrays."""
+    return [
+        (
+            (g["pressure_kPa"].to_numpy() / 100.0, g["contraction_pct"].to_numpy()),
+            g["force_N"].to_numpy(),
+        )
+        for _, g in frame.groupby("muscle", sort=True)
+    ]
+
+
+@pytest.fixture(scope="session")
+def split_frame():
+    """The function :func:`frame_groups`, for tests that simulate their own bench."""
+    return frame_groups
+
+
+@pytest.fixture(scope="session")
+def small_bench(theta31, tmp_path_factory) -> SmallBench:
+    # Three muscles whose constants differ inside the Table 3-1 intervals.
+    shift = np.array(
+        [[0.0] * 6, [0.5, 1.0, 0.002, 0.03, -0.5, 1.0], [-0.5, -1.0, -0.002, -0.03, 0.5, -1.0]]
+    )
+    theta = theta31 + shift
+    frame = pamid.simulate_sarosi_bench(
+        jax.random.key(0), pamid.Sarosi.from_vector(theta), pamid.SarosiProtocol(min_force_N=10.0)
+    )
+    path = tmp_path_factory.mktemp("bench") / "small_bench.csv"
+    frame.to_csv(path, index=False)
+    bench = pamid.load_bench(path)
+    return SmallBench(theta, frame, bench, pamid.bench_to_fit_data(bench), frame_groups(frame))
