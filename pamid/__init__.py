@@ -22,6 +22,10 @@ from ._fit._api import bench_to_fit_data as bench_to_fit_data
 from ._fit._api import fit_least_squares as fit_least_squares
 from ._fit._batch import FitData as FitData
 from ._fit._batch import pack as pack_muscles
+from ._models._cullinan import Cullinan as Cullinan
+from ._models._cullinan import cullinan_force as cullinan_force
+from ._models._cullinan import cullinan_spring_rate as cullinan_spring_rate
+from ._models._cullinan import end_fitting_force as end_fitting_force
 from ._models._hysteresis import hysteresis_damping as hysteresis_damping
 from ._models._hysteresis import sarosi_force_integral as sarosi_force_integral
 from ._models._sarosi import TABLE_3_1 as TABLE_3_1

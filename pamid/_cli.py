@@ -69,7 +69,8 @@ def _format_table(result, published=None) -> str:
         for r in rows:
             lines.append("  " + "  ".join(v.rjust(w) for v, w in zip(r, widths)))
         lines.append("")
-    lines.append("95% low/high: Wald intervals with Student-t (n − 6 dof), as Excel reports them.")
+    lines.append(f"95% low/high: Wald intervals with Student-t (n − {result.theta.shape[1]} dof), "
+                 "as Excel reports them.")
     if result.ci95_profile is not None:
         lines.append("profile: profile-likelihood (profile-t) intervals.")
     if result.ci95_bootstrap is not None:
@@ -85,9 +86,9 @@ def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
         frame = bench.for_muscle(muscle)
         name = _safe(muscle) if bench.has_muscle_column else "muscle"
         label = muscle if bench.has_muscle_column else Path(bench.path).name
-        title = f"Sárosi eq. 2.1 fit — {label}"
-        _plot.plot_fit(frame, result.theta[i], out / f"fit_{name}.png", title)
-        _plot.plot_residuals(frame, result.theta[i], out / f"residuals_{name}.png",
+        title = f"{result.spec.source} fit — {label}"
+        _plot.plot_fit(frame, result.spec, result.theta[i], out / f"fit_{name}.png", title)
+        _plot.plot_residuals(frame, result.spec, result.theta[i], out / f"residuals_{name}.png",
                              f"Residuals — {title}")
         written += [f"fit_{name}.png", f"residuals_{name}.png"]
     if result.n_muscles > 1:
@@ -217,8 +218,9 @@ def _parser() -> argparse.ArgumentParser:
     fit = sub.add_parser("fit", help="fit a static force model to bench data (CSV or Parquet)")
     fit.add_argument("data", help="bench file: pressure_kPa|bar|Pa|psi, force_N, contraction_pct "
                                   "or length_mm (+ l0_mm), optional muscle, direction, …")
-    fit.add_argument("--model", default="sarosi", choices=["sarosi"],
-                     help="force model (Sárosi eq. 2.1)")
+    fit.add_argument("--model", default="sarosi", choices=["sarosi", "cullinan"],
+                     help="force model: sarosi (Sárosi eq. 2.1; p in bar, κ in %%) or cullinan "
+                          "(Cullinan eq. 3; N, kPa, mm, s; G too when velocity_mm_s is given)")
     fit.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     fit.add_argument("--out", help="folder for plots (PNG) and fit.json")
     fit.add_argument("--l0-mm", type=float, dest="l0_mm",

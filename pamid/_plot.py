@@ -10,8 +10,24 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ._io import save_figure_atomic  # noqa: E402
-from ._models._sarosi import Sarosi, sarosi_force  # noqa: E402
-from ._units import KPA_PER_BAR  # noqa: E402
+
+_LABELS = {
+    "contraction_pct": "contraction κ [%]",
+    "contraction_mm": "contraction y [mm]",
+}
+
+
+def _model_on_rows(spec, theta, frame):
+    return np.asarray(spec.predict(np.asarray(theta), spec.x_from_frame(frame)))
+
+
+def _model_curve(spec, theta, p_kpa, contraction):
+    """The model along a contraction grid at one pressure, at rest (velocities zero)."""
+    cols = {c: np.zeros_like(contraction) for c in spec.columns}
+    cols["pressure_kPa"] = np.full_like(contraction, p_kpa)
+    cols[spec.contraction_column] = contraction
+    x = spec.to_x(*(cols[c] for c in spec.columns))
+    return np.asarray(spec.predict(np.asarray(theta), x))
 
 
 def _pressure_levels(p_kpa):
@@ -19,18 +35,18 @@ def _pressure_levels(p_kpa):
     return np.unique(np.round(p_kpa))
 
 
-def plot_fit(frame, theta, path, title: str) -> None:
+def plot_fit(frame, spec, theta, path, title: str) -> None:
     """Force against contraction per pressure, data and fitted model, with residuals below.
 
-    ``frame`` is one muscle's rows of a bench table (pressure_kPa, contraction_pct,
-    force_N, optionally direction); ``theta`` the fitted Sárosi constants.
+    ``frame`` is one muscle's rows of a bench table; ``spec`` the fitted model
+    (``pamid._fit._spec.ModelSpec``) and ``theta`` its constants. Model lines are drawn at
+    rest (zero velocity); residuals use every column the model takes.
     """
-    params = Sarosi.from_vector(np.asarray(theta))
     p = frame["pressure_kPa"].to_numpy()
-    k = frame["contraction_pct"].to_numpy()
+    k = frame[spec.contraction_column].to_numpy()
     f = frame["force_N"].to_numpy()
     direction = frame["direction"].to_numpy() if "direction" in frame else np.zeros_like(p)
-    resid = f - np.asarray(sarosi_force(params, p / KPA_PER_BAR, k))
+    resid = f - _model_on_rows(spec, theta, frame)
     levels = _pressure_levels(p)
     colors = plt.cm.viridis(np.linspace(0.0, 0.9, max(len(levels), 1)))
 
@@ -46,18 +62,18 @@ def plot_fit(frame, theta, path, title: str) -> None:
             ax.plot(k[s], f[s], marker, ms=3.5, mfc="none", color=color, alpha=0.8)
             axr.plot(k[s], resid[s], marker, ms=3, mfc="none", color=color, alpha=0.8)
         kk = np.linspace(k[sel].min(), k[sel].max(), 200)
-        ax.plot(kk, sarosi_force(params, level / KPA_PER_BAR, kk), "-", color=color, lw=1.5,
+        ax.plot(kk, _model_curve(spec, theta, level, kk), "-", color=color, lw=1.5,
                 label=f"{level:g} kPa")
     ax.set_ylabel("force F [N]")
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    leg = ax.legend(title="pressure (lines: model eq. 2.1)", fontsize=8, title_fontsize=8)
+    leg = ax.legend(title=f"pressure (lines: {spec.source})", fontsize=8, title_fontsize=8)
     leg.get_frame().set_alpha(0.8)
     if (direction != 0).any():
         ax.text(0.99, 0.55, "○ contracting   □ extending", transform=ax.transAxes,
                 ha="right", fontsize=8, color="0.3")
     axr.axhline(0.0, color="k", lw=0.8)
-    axr.set_xlabel("contraction κ [%]")
+    axr.set_xlabel(_LABELS[spec.contraction_column])
     axr.set_ylabel("residual [N]\n(data − model)")
     axr.grid(alpha=0.3)
     fig.tight_layout()
@@ -65,19 +81,18 @@ def plot_fit(frame, theta, path, title: str) -> None:
     plt.close(fig)
 
 
-def plot_residuals(frame, theta, path, title: str) -> None:
+def plot_residuals(frame, spec, theta, path, title: str) -> None:
     """Residuals against contraction, pressure, fitted force and sample order."""
-    params = Sarosi.from_vector(np.asarray(theta))
     p = frame["pressure_kPa"].to_numpy()
-    k = frame["contraction_pct"].to_numpy()
+    k = frame[spec.contraction_column].to_numpy()
     f = frame["force_N"].to_numpy()
-    model = np.asarray(sarosi_force(params, p / KPA_PER_BAR, k))
+    model = _model_on_rows(spec, theta, frame)
     resid = f - model
     direction = frame["direction"].to_numpy() if "direction" in frame else None
 
     fig, axes = plt.subplots(2, 2, figsize=(9, 6.5))
     panels = [
-        (k, "contraction κ [%]"),
+        (k, _LABELS[spec.contraction_column]),
         (p, "pressure p [kPa]"),
         (model, "fitted force [N]"),
         (np.arange(len(resid)), "sample order in file"),

@@ -13,7 +13,8 @@ Required:
     * gauge pressure, as exactly one of ``pressure_kPa``, ``pressure_bar``, ``pressure_Pa``,
       ``pressure_psi`` (converted to kPa);
     * ``force_N``, the axial pulling force in N;
-    * ``contraction_pct``, 100 (l0 - length) / l0 in percent, or else ``length_mm`` together
+    * ``contraction_pct``, 100 (l0 - length) / l0 in percent, or ``contraction_mm`` (the
+      contraction as a length, l0 - length), or else ``length_mm`` together
       with the nominal length l0 in mm, from an ``l0_mm`` column (constant within a muscle)
       or from the ``l0_mm=`` argument.
 Optional:
@@ -59,7 +60,7 @@ QUANTITY_UNITS: dict[str, tuple[str, ...]] = {
     "force": ("N",),
     "length": ("mm",),
     "l0": ("mm",),
-    "contraction": ("pct",),
+    "contraction": ("pct", "mm"),
     "time": ("s",),
     "temperature": ("C",),
     "velocity": ("mm_s",),
@@ -88,11 +89,12 @@ class BenchData:
     ----------
     frame:
         One row per kept sample. Columns: ``muscle`` (str), ``pressure_kPa`` (gauge pressure,
-        kPa), ``contraction_pct`` (%, positive when shorter than l0), ``force_N`` (N), all
-        float64 apart from ``muscle``; then those of ``time_s`` (s), ``direction`` (int, +1
-        or -1), ``temperature_C`` (deg C), ``cycle`` (int), ``length_mm`` (mm) and
-        ``l0_mm`` (mm) that are known; then the covariates and any text columns as given;
-        last ``source_row``, the 1-based data row of the sample in the file.
+        kPa), ``contraction_pct`` (%, positive when shorter than l0) and ``contraction_mm``
+        (the contraction as a length, Cullinan's y) where each is given or derivable with
+        l0, ``force_N`` (N), all float64 apart from ``muscle``; then those of ``time_s``
+        (s), ``direction`` (int, +1 or -1), ``temperature_C`` (deg C), ``cycle`` (int),
+        ``length_mm`` (mm) and ``l0_mm`` (mm) that are known; then the covariates and any
+        text columns as given; last ``source_row``, the 1-based data row of the sample in the file.
     path:
         The file, as given to :func:`load_bench`.
     has_muscle_column:
@@ -474,8 +476,8 @@ def _check_required(table: _Table, l0_arg: float | None) -> str:
         missing.append("pressure_kPa (or pressure_bar, pressure_Pa, pressure_psi)")
     if "force_N" not in names:
         missing.append("force_N")
-    if "contraction_pct" not in names and "length_mm" not in names:
-        missing.append("contraction_pct (or length_mm with l0_mm)")
+    if not {"contraction_pct", "contraction_mm", "length_mm"} & set(names):
+        missing.append("contraction_pct (or contraction_mm, or length_mm with l0_mm)")
     if missing:
         found = ", ".join(names) if names else "none"
         lead = "missing required column" + ("s" if len(missing) > 1 else "")
@@ -485,9 +487,14 @@ def _check_required(table: _Table, l0_arg: float | None) -> str:
         raise table.error(f"{lead}: {'; '.join(missing)}. Columns found: {found}", column=column)
     if table.n_rows == 0:
         raise table.error("no data rows: the file has a header but no data below it")
-    if "contraction_pct" not in names and "l0_mm" not in names and l0_arg is None:
+    if (
+        not {"contraction_pct", "contraction_mm"} & set(names)
+        and "l0_mm" not in names
+        and l0_arg is None
+    ):
         raise table.error(
-            "length_mm is given without contraction_pct, so the nominal length l0 is needed "
+            "length_mm is given without contraction_pct or contraction_mm, so the nominal "
+            "length l0 is needed "
             "to compute the contraction: add an l0_mm column or pass l0_mm=... "
             "(--l0-mm on the command line)",
             column="length_mm",
@@ -651,8 +658,11 @@ def load_bench(
     elif l0_value is not None:
         l0_rows = np.full(n, l0_value)
 
-    # ---- contraction ----
+    # ---- contraction: in % of l0 (Sárosi) and as a length in mm (Cullinan) ----
+    # Each is taken from its own column, else derived from length_mm and l0, else from the
+    # other one and l0; one that cannot be derived is left out of the frame.
     lo, hi = CONTRACTION_RANGE_PCT
+    contraction = contraction_mm = None
     if "contraction_pct" in values:
         contraction = values["contraction_pct"]
         i = _first_true((contraction < lo) | (contraction > hi))
@@ -664,7 +674,7 @@ def load_bench(
                 column="contraction_pct",
                 index=i,
             )
-    else:
+    elif "length_mm" in values and l0_rows is not None:
         length = values["length_mm"]
         contraction = 100.0 * (l0_rows - length) / l0_rows
         i = _first_true((contraction < lo) | (contraction > hi))
@@ -676,6 +686,23 @@ def load_bench(
                 column="length_mm",
                 index=i,
             )
+    if "contraction_mm" in values:
+        contraction_mm = values["contraction_mm"]
+        if l0_rows is not None:
+            pct = 100.0 * contraction_mm / l0_rows
+            i = _first_true((pct < lo) | (pct > hi))
+            if i is not None:
+                raise table.error(
+                    f"contraction {cols['contraction_mm'].raw(i)} mm with l0 {l0_rows[i]:g} mm "
+                    f"is {pct[i]:.4g} % of the nominal length, outside the physical range "
+                    f"{lo:g} % to {hi:g} %",
+                    column="contraction_mm",
+                    index=i,
+                )
+            if contraction is None:
+                contraction = pct
+    elif l0_rows is not None and contraction is not None:
+        contraction_mm = contraction * l0_rows / 100.0
 
     # ---- direction, cycle, time ----
     if "direction" in values:
@@ -718,9 +745,12 @@ def load_bench(
     data: dict[str, object] = {
         "muscle": ids,
         "pressure_kPa": pressure_kpa.astype(np.float64),
-        "contraction_pct": np.asarray(contraction, dtype=np.float64),
-        "force_N": values["force_N"],
     }
+    if contraction is not None:
+        data["contraction_pct"] = np.asarray(contraction, dtype=np.float64)
+    if contraction_mm is not None:
+        data["contraction_mm"] = np.asarray(contraction_mm, dtype=np.float64)
+    data["force_N"] = values["force_N"]
     for name in _OPTIONAL_NUMERIC:
         if name == "l0_mm":
             if l0_rows is not None:

@@ -9,7 +9,6 @@ import numpy as np
 import pandas as pd
 
 from .._data._bench import BenchData
-from .._units import KPA_PER_BAR
 from . import _intervals
 from ._batch import FitData, pack
 from ._least_squares import solve, statistics
@@ -48,18 +47,15 @@ class FitResult:
     solver: str
     profile_ok: np.ndarray | None = None
     bootstrap_converged: np.ndarray | None = None
+    spec: ModelSpec | None = None
 
     @property
     def n_muscles(self) -> int:
         return self.theta.shape[0]
 
     def params(self, i: int = 0):
-        """The constants of muscle ``i`` as the model's parameter object (e.g. Sarosi)."""
-        if self.model == "sarosi":
-            from .._models._sarosi import Sarosi
-
-            return Sarosi.from_vector(self.theta[i])
-        raise NotImplementedError(self.model)
+        """The constants of muscle ``i`` as the model's parameter object (Sarosi, Cullinan)."""
+        return self.spec.make(self.theta[i])
 
     def to_dict(self) -> dict:
         """The JSON shape of ``pamid fit --json``."""
@@ -90,6 +86,8 @@ class FitResult:
             )
         return {
             "model": self.model,
+            "equation": self.spec.source,
+            "units": dict(self.spec.units),
             "solver": self.solver,
             "interval": "wald-t",
             "muscles": muscles,
@@ -122,15 +120,13 @@ def _curve_ids(frame: pd.DataFrame) -> np.ndarray:
     return np.cumsum(change) - 1
 
 
-def bench_to_fit_data(bench: BenchData, model: str = "sarosi") -> FitData:
-    """Pack a loaded bench file into a batch, one lane per muscle."""
-    if model != "sarosi":
-        raise ValueError(f"unknown model {model!r}")
+def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi") -> FitData:
+    """Pack a loaded bench file into a batch, one lane per muscle, with the model's inputs."""
+    spec = get_model(model, bench.frame) if isinstance(model, str) else model
     groups, curves = [], []
     for muscle in bench.muscles:
         f = bench.for_muscle(muscle)
-        x = (f["pressure_kPa"].to_numpy() / KPA_PER_BAR, f["contraction_pct"].to_numpy())
-        groups.append((x, f["force_N"].to_numpy()))
+        groups.append((spec.x_from_frame(f, bench.path), f["force_N"].to_numpy()))
         curves.append(_curve_ids(f))
     return pack(groups, curves)
 
@@ -151,7 +147,8 @@ def fit_least_squares(
 
     Args:
         data: a loaded bench file (:func:`pamid.load_bench`) or a packed :class:`FitData`.
-        model: "sarosi" (eq. 2.1) or a :class:`ModelSpec`.
+        model: "sarosi" (Sárosi eq. 2.1), "cullinan" (Cullinan eq. 3: A–E from static
+            data, and G too when the data carry ``velocity_mm_s``), or a ModelSpec.
         solver: "gauss-newton" (default: optimistix, from a variable-projection start),
             "levenberg-marquardt", "variable-projection", "jaxopt-levenberg-marquardt".
         intervals: any of "wald" (always computed), "profile", "bootstrap".
@@ -160,13 +157,14 @@ def fit_least_squares(
         bounds: optional (lower, upper) arrays of the constants; uses jaxopt's L-BFGS-B.
         level: coverage of the intervals (0.95).
     """
-    spec = get_model(model) if isinstance(model, str) else model
+    frame = data.frame if isinstance(data, BenchData) else None
+    spec = get_model(model, frame) if isinstance(model, str) else model
     unknown = set(intervals) - set(INTERVAL_KINDS)
     if unknown:
         raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")
     if isinstance(data, BenchData):
         names = tuple(m if data.has_muscle_column else None for m in data.muscles)
-        data = bench_to_fit_data(data, spec.name)
+        data = bench_to_fit_data(data, spec)
     else:
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
 
@@ -209,4 +207,5 @@ def fit_least_squares(
         solver=solver if bounds is None else "jaxopt-lbfgsb",
         profile_ok=profile_ok,
         bootstrap_converged=boot_ok,
+        spec=spec,
     )
