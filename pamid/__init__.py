@@ -26,8 +26,33 @@ from ._models._cullinan import Cullinan as Cullinan
 from ._models._cullinan import cullinan_force as cullinan_force
 from ._models._cullinan import cullinan_spring_rate as cullinan_spring_rate
 from ._models._cullinan import end_fitting_force as end_fitting_force
+from ._models._energy import R_AIR_J_PER_KG_K as R_AIR_J_PER_KG_K
+from ._models._energy import ROOM_TEMPERATURE_K as ROOM_TEMPERATURE_K
+from ._models._energy import TrajectoryEnergy as TrajectoryEnergy
+from ._models._energy import air_mass_kg as air_mass_kg
+from ._models._energy import compressor_work_J as compressor_work_J
+from ._models._energy import trajectory_energy_J as trajectory_energy_J
 from ._models._hysteresis import hysteresis_damping as hysteresis_damping
 from ._models._hysteresis import sarosi_force_integral as sarosi_force_integral
+from ._models._joint import CULLINAN_CABLE_COMPLIANCE_MM_PER_N as CULLINAN_CABLE_COMPLIANCE_MM_PER_N
+from ._models._joint import CULLINAN_P_MAX_KPA as CULLINAN_P_MAX_KPA
+from ._models._joint import CULLINAN_PULLEY_RADIUS_MM as CULLINAN_PULLEY_RADIUS_MM
+from ._models._joint import AvailableTorque as AvailableTorque
+from ._models._joint import ClosedSystemStiffness as ClosedSystemStiffness
+from ._models._joint import IsobaricStiffness as IsobaricStiffness
+from ._models._joint import JointGeometry as JointGeometry
+from ._models._joint import MuscleState as MuscleState
+from ._models._joint import available_torque_Nm as available_torque_Nm
+from ._models._joint import closed_system_stiffness as closed_system_stiffness
+from ._models._joint import closed_system_torque_Nm as closed_system_torque_Nm
+from ._models._joint import contractions_mm as contractions_mm
+from ._models._joint import joint_stiffness_eq7_Nm_per_rad as joint_stiffness_eq7_Nm_per_rad
+from ._models._joint import joint_stiffness_Nm_per_rad as joint_stiffness_Nm_per_rad
+from ._models._joint import joint_torque_eq6_Nm as joint_torque_eq6_Nm
+from ._models._joint import joint_torque_Nm as joint_torque_Nm
+from ._models._joint import max_isobaric_stiffness as max_isobaric_stiffness
+from ._models._joint import muscle_state as muscle_state
+from ._models._joint import pressures_for_torque_stiffness_kPa as pressures_for_torque_stiffness_kPa
 from ._models._sarosi import TABLE_3_1 as TABLE_3_1
 from ._models._sarosi import TABLE_3_1_L0_MM as TABLE_3_1_L0_MM
 from ._models._sarosi import Sarosi as Sarosi
@@ -37,5 +62,11 @@ from ._models._sarosi import sarosi_pressure_for_force as sarosi_pressure_for_fo
 from ._models._sarosi import sarosi_stiffness as sarosi_stiffness
 from ._models._sarosi import sarosi_stiffness_eq_2_9 as sarosi_stiffness_eq_2_9
 from ._models._sarosi import table_3_1 as table_3_1
+from ._models._volume import PamVolume as PamVolume
+from ._models._volume import braid_volume_mm3 as braid_volume_mm3
+from ._models._volume import closed_system_pressure_kPa as closed_system_pressure_kPa
+from ._models._volume import sleeve_pam_volume as sleeve_pam_volume
+from ._models._volume import traditional_pam_volume as traditional_pam_volume
+from ._models._volume import volume_mm3 as pam_volume_mm3
 
 __version__ = importlib.metadata.version("pamid")
