@@ -87,8 +87,10 @@ def cullinan_spring_rate(
     params: Cullinan, pressure_kPa: ArrayLike, contraction_mm: ArrayLike
 ) -> Float[Array, "..."]:
     """−∂F/∂y in N/mm, closed form of eq. 3: C + D·P′ + 2·E·y (the muscle's own stiffness)."""
-    return params.C + params.D * jnp.asarray(pressure_kPa) + 2.0 * params.E * jnp.asarray(
-        contraction_mm
+    return (
+        params.C
+        + params.D * jnp.asarray(pressure_kPa)
+        + 2.0 * params.E * jnp.asarray(contraction_mm)
     )
 
 
