@@ -47,8 +47,9 @@ RIGID = JointGeometry(40.0, 1.2)
 CABLE = JointGeometry(40.0, 1.2, CULLINAN_CABLE_COMPLIANCE_MM_PER_N)
 TRAD_VOL = traditional_pam_volume()
 SLEEVE_VOL = sleeve_pam_volume()
-L0, D0, THETA0 = 190.0, 40.0, math.radians(25.0)
+L0, D0, THETA0 = 190.0, 40.0, math.radians(30.0)  # the defaults of traditional_pam_volume()
 P_ATM = 101.325
+ELEMENT_MM = 30.0  # the default element of sleeve_pam_volume()
 RT = R_AIR_J_PER_KG_K * ROOM_TEMPERATURE_K
 
 
@@ -99,7 +100,7 @@ def test_volume_grows_with_contraction_up_to_the_maximum_braid_angle():
 
 def test_sleeve_volume_is_traditional_minus_the_element():
     y = np.linspace(0.0, 60.0, 13)
-    element = math.pi * 25.0**2 / 4 * (L0 - y)
+    element = math.pi * ELEMENT_MM**2 / 4 * (L0 - y)
     np.testing.assert_allclose(
         volume_mm3(SLEEVE_VOL, y), np.asarray(volume_mm3(TRAD_VOL, y)) - element, rtol=1e-13
     )
@@ -116,7 +117,7 @@ def test_volume_slope_by_grad_matches_closed_form_and_finite_differences():
     slope = jax.vmap(jax.grad(lambda yy: volume_mm3(SLEEVE_VOL, yy)))(y)
     b2 = (L0 / math.cos(THETA0)) ** 2
     length = L0 - np.asarray(y)
-    closed = math.pi * D0**2 / 4 * (3 * length**2 - b2) / (b2 - L0**2) + math.pi * 25.0**2 / 4
+    closed = math.pi * D0**2 / 4 * (3 * length**2 - b2) / (b2 - L0**2) + math.pi * ELEMENT_MM**2 / 4
     np.testing.assert_allclose(slope, closed, rtol=1e-12)
     h = 1e-4
     fd = (volume_mm3(SLEEVE_VOL, y + h) - volume_mm3(SLEEVE_VOL, y - h)) / (2 * h)

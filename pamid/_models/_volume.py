@@ -137,12 +137,14 @@ class PamVolume(eqx.Module):
 def traditional_pam_volume(
     active_length_mm: float = 190.0,
     rest_diameter_mm: float = 40.0,
-    rest_braid_angle_deg: float = 25.0,
+    rest_braid_angle_deg: float = 30.0,
     dead_volume_mm3: float = 5000.0,
 ) -> PamVolume:
     """A traditional braided PAM like Cullinan's (Section III): L0 = 190 mm, D0 = 40 mm.
 
-    θ0 = 25° and the 5 cm³ dead volume are assumptions (see the module docstring).
+    θ0 = 30° and the 5 cm³ dead volume are assumptions, the same ones behind the fitted
+    force presets of ``pamid._models._cullinan_presets`` (θ0 = 30° gives the paper's 15 N·m
+    at ±0.6 rad; see there).
     """
     return PamVolume(
         active_length_mm, rest_diameter_mm, math.radians(rest_braid_angle_deg), dead_volume_mm3
@@ -152,13 +154,15 @@ def traditional_pam_volume(
 def sleeve_pam_volume(
     active_length_mm: float = 190.0,
     rest_diameter_mm: float = 40.0,
-    rest_braid_angle_deg: float = 25.0,
+    rest_braid_angle_deg: float = 30.0,
     dead_volume_mm3: float = 5000.0,
-    element_diameter_mm: float = 25.0,
+    element_diameter_mm: float = 30.0,
 ) -> PamVolume:
     """A sleeve PAM like Cullinan's (Fig. 2): the traditional PAM with an internal element.
 
-    The element's 25 mm diameter is an assumption; it removes π·d²/4·(L0 − y) of gas volume.
+    The element's 30 mm diameter is an assumption (a sliding fitting needs a wall around it
+    inside the 40 mm bore); it removes π·d²/4·(L0 − y) of gas volume. Same assumptions as
+    the force presets of ``pamid._models._cullinan_presets``.
     """
     return PamVolume(
         active_length_mm,
