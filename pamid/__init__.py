@@ -16,11 +16,25 @@ from ._data._bench import CensoredRowsWarning as CensoredRowsWarning
 from ._data._bench import load_bench as load_bench
 from ._data._virtual_bench import SarosiProtocol as SarosiProtocol
 from ._data._virtual_bench import simulate_sarosi_bench as simulate_sarosi_bench
+from ._data._virtual_decay import DecayProtocol as DecayProtocol
+from ._data._virtual_decay import simulate_decays as simulate_decays
 from ._data._virtual_joint import DeflectionProtocol as DeflectionProtocol
 from ._data._virtual_joint import JointSweepProtocol as JointSweepProtocol
 from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
 from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
 from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
+from ._dynamics._decay import DecayReport as DecayReport
+from ._dynamics._decay import DecrementEstimate as DecrementEstimate
+from ._dynamics._decay import Extrema as Extrema
+from ._dynamics._decay import TrajectoryFit as TrajectoryFit
+from ._dynamics._decay import analyze_decays as analyze_decays
+from ._dynamics._decay import decrement_estimate as decrement_estimate
+from ._dynamics._decay import find_extrema as find_extrema
+from ._dynamics._decay import fit_decay_trajectories as fit_decay_trajectories
+from ._dynamics._decay import log_decrement_to_zeta as log_decrement_to_zeta
+from ._dynamics._decay import moment_of_inertia_eq12 as moment_of_inertia_eq12
+from ._dynamics._decay_data import DecayData as DecayData
+from ._dynamics._decay_data import load_decay as load_decay
 from ._errors import BenchDataError as BenchDataError
 from ._fit._api import FitResult as FitResult
 from ._fit._api import bench_to_fit_data as bench_to_fit_data
@@ -85,5 +99,15 @@ from ._models._volume import closed_system_pressure_kPa as closed_system_pressur
 from ._models._volume import sleeve_pam_volume as sleeve_pam_volume
 from ._models._volume import traditional_pam_volume as traditional_pam_volume
 from ._models._volume import volume_mm3 as pam_volume_mm3
+from ._sim._lifting_mass import LiftingMass as LiftingMass
+from ._sim._lifting_mass import LiftingMassRun as LiftingMassRun
+from ._sim._lifting_mass import hysteresis_branches as hysteresis_branches
+from ._sim._lifting_mass import lifting_mass_equilibrium as lifting_mass_equilibrium
+from ._sim._lifting_mass import simulate_lifting_mass as simulate_lifting_mass
+from ._sim._lifting_mass import zeta_from_hysteresis as zeta_from_hysteresis
+from ._sim._oscillator import DampedOscillator as DampedOscillator
+from ._sim._oscillator import OscillatorRun as OscillatorRun
+from ._sim._oscillator import oscillator_response as oscillator_response
+from ._sim._oscillator import simulate_oscillator as simulate_oscillator
 
 __version__ = importlib.metadata.version("pamid")

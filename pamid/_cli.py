@@ -1,4 +1,5 @@
-"""The ``pamid`` command: ``pamid fit`` and ``pamid demo``.
+"""The ``pamid`` command: ``pamid fit``, ``pamid demo``, ``pamid simulate lifting-mass`` and
+``pamid damping``.
 
 Bad input ends with a one-line message that names the file, column and row, and exit code 2;
 no traceback. ``--json`` prints exactly one JSON object on stdout; warnings and progress go
@@ -242,6 +243,10 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="demo-out", help="folder for plots and demo.json")
     demo.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap")
     demo.set_defaults(func=_cmd_demo)
+
+    from ._commands import dynamics
+
+    dynamics.register(sub)
     return parser
 
 
