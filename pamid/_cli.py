@@ -84,7 +84,7 @@ def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
 
     written = []
     for i, muscle in enumerate(bench.muscles[:max_plots]):
-        frame = bench.for_muscle(muscle)
+        frame = bench.for_muscle(muscle)  # a few muscles only
         name = _safe(muscle) if bench.has_muscle_column else "muscle"
         label = muscle if bench.has_muscle_column else Path(bench.path).name
         title = f"{result.spec.source} fit — {label}"

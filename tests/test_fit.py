@@ -489,3 +489,16 @@ def test_fit_data_is_a_batch_of_jax_arrays(small_bench):
     assert all(isinstance(a, jax.Array) and a.dtype == jnp.float64 for a in (*data.x, data.y))
     # Curves of the virtual bench: 5 pressures × 2 directions, 30 samples each.
     np.testing.assert_array_equal(np.asarray(data.curve[0]), np.repeat(np.arange(10), 30))
+
+
+def test_chunked_lanes_equal_one_call(small_bench, monkeypatch):
+    """Large batches are processed in chunks of lanes (memory); the answers do not change."""
+    import pamid._fit._batch as batch
+
+    whole = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    monkeypatch.setattr(batch, "CHUNK_LANES", 2)  # 3 muscles: a chunk of 2 and a padded one
+    chunked = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    np.testing.assert_allclose(chunked.theta, whole.theta, rtol=1e-12)
+    np.testing.assert_allclose(chunked.ci95, whole.ci95, rtol=1e-12)
+    np.testing.assert_allclose(chunked.ci95_profile, whole.ci95_profile, rtol=1e-10)
+    assert (chunked.converged == whole.converged).all()

@@ -121,6 +121,12 @@ class BenchData:
     n_censored: int = 0
     pressure_unit_in_file: str = "kPa"
 
+    def groups(self):
+        """(muscle id, its rows with a fresh index) for every muscle, in order, in one pass
+        over the table (:meth:`for_muscle` filters the whole table once per call)."""
+        for muscle_id, rows in self.frame.groupby("muscle", sort=False):
+            yield muscle_id, rows.reset_index(drop=True)
+
     def for_muscle(self, muscle_id: str) -> pd.DataFrame:
         """The rows of one muscle, as a new DataFrame with a fresh 0-based index.
 
@@ -780,7 +786,8 @@ def load_bench(
             )
         before = list(dict.fromkeys(ids))
         frame = frame.loc[~censored].reset_index(drop=True)
-        gone = [m for m in before if m not in set(frame["muscle"])]
+        kept = set(frame["muscle"])
+        gone = [m for m in before if m not in kept]
         note = ""
         if gone:
             note = "; muscles with only censored rows, left out: " + ", ".join(
@@ -796,14 +803,14 @@ def load_bench(
         n_censored = 0
 
     muscles = tuple(dict.fromkeys(frame["muscle"].tolist()))
-    l0_per_muscle: dict[str, float | None] = {}
-    for muscle_id in muscles:
-        if "l0_mm" in frame:
-            l0_per_muscle[muscle_id] = float(
-                frame.loc[frame["muscle"] == muscle_id, "l0_mm"].iloc[0]
-            )
-        else:
-            l0_per_muscle[muscle_id] = None
+    # One pass over the table (l0 is constant within a muscle, checked above).
+    if "l0_mm" in frame:
+        first_rows = frame.drop_duplicates("muscle")
+        l0_per_muscle: dict[str, float | None] = dict(
+            zip(first_rows["muscle"], first_rows["l0_mm"].astype(float), strict=True)
+        )
+    else:
+        l0_per_muscle = dict.fromkeys(muscles)
 
     return BenchData(
         frame=frame,

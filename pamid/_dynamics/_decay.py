@@ -88,8 +88,6 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 import scipy.linalg
-import scipy.signal
-import scipy.stats
 
 from .._errors import BenchDataError
 from .._sim._oscillator import DampedOscillator, oscillator_response
@@ -127,6 +125,20 @@ class NoOscillationError(ValueError):
 # --------------------------------------------------------------------------------------
 # Cullinan eq. 10 and eq. 12
 # --------------------------------------------------------------------------------------
+
+
+
+def _stats():
+    """scipy.stats, imported on first use: it and scipy.signal cost ~0.8 s of start-up."""
+    import scipy.stats
+
+    return scipy.stats
+
+
+def _signal():
+    import scipy.signal
+
+    return scipy.signal
 
 
 def log_decrement_to_zeta(delta):
@@ -294,8 +306,8 @@ def find_extrema(time_s, angle_rad) -> Extrema:
     tu = np.linspace(t[0], t[-1], len(t))
     prominence = max(3.0 * noise + q, 1e-9 * span)
     distance = max(1, int(0.7 * samples_per_period))
-    peaks, _ = scipy.signal.find_peaks(ys, prominence=prominence, distance=distance)
-    troughs, _ = scipy.signal.find_peaks(-ys, prominence=prominence, distance=distance)
+    peaks, _ = _signal().find_peaks(ys, prominence=prominence, distance=distance)
+    troughs, _ = _signal().find_peaks(-ys, prominence=prominence, distance=distance)
     idx = np.concatenate([peaks, troughs])
     kinds = np.concatenate([np.ones(len(peaks), int), -np.ones(len(troughs), int)])
     order = np.argsort(idx)
@@ -345,7 +357,7 @@ def find_extrema(time_s, angle_rad) -> Extrema:
 
 
 def _t(dof: float) -> float:
-    return float(scipy.stats.t.ppf(0.5 + LEVEL / 2, dof)) if dof > 0 else math.nan
+    return float(_stats().t.ppf(0.5 + LEVEL / 2, dof)) if dof > 0 else math.nan
 
 
 def _slope(xs: list[np.ndarray], ys: list[np.ndarray], ws: list[np.ndarray] | None = None):
@@ -550,7 +562,7 @@ def _amplitude_dependence(travel_lists, stiffness):
         covs.append(4.0 * diff @ _log_travel_cov(a) @ diff.T)
     slope, se, dof = _common_slope_gls(amps, deltas, covs)
     tval = slope / se if se > 0 else math.nan
-    p = float(2.0 * scipy.stats.t.sf(abs(tval), dof)) if np.isfinite(tval) else math.nan
+    p = float(2.0 * _stats().t.sf(abs(tval), dof)) if np.isfinite(tval) else math.nan
     out.update(slope_per_rad=slope, slope_per_rad_ci95=_interval(slope, se, dof),
                slope_p_value=p)
     # (2) δ of the early and of the late half of the travels.
@@ -565,7 +577,7 @@ def _amplitude_dependence(travel_lists, stiffness):
             fits.append((-2.0 * b, 2.0 * sb, db))
         (d1, s1, n1), (d2, s2, n2) = fits
         z = (d2 - d1) / math.hypot(s1, s2)
-        p_el = float(2.0 * scipy.stats.t.sf(abs(z), min(n1, n2))) if np.isfinite(z) else math.nan
+        p_el = float(2.0 * _stats().t.sf(abs(z), min(n1, n2))) if np.isfinite(z) else math.nan
         out.update(log_decrement_early=d1, log_decrement_early_ci95=_interval(d1, s1, n1),
                    log_decrement_late=d2, log_decrement_late_ci95=_interval(d2, s2, n2),
                    early_late_p_value=p_el)
@@ -587,7 +599,7 @@ def _amplitude_dependence(travel_lists, stiffness):
     tc_se = math.sqrt(max(float(grad @ cov @ grad), 0.0))
     delta_v = -2.0 * math.log(r) if r > 0 else math.nan
     t_b = b / math.sqrt(cov[1, 1]) if cov[1, 1] > 0 else math.nan
-    p_tc = float(2.0 * scipy.stats.t.sf(abs(t_b), dof_m)) if np.isfinite(t_b) else math.nan
+    p_tc = float(2.0 * _stats().t.sf(abs(t_b), dof_m)) if np.isfinite(t_b) else math.nan
     out.update(coulomb_Nm=tc, coulomb_Nm_ci95=_interval(tc, tc_se, dof_m),
                coulomb_p_value=p_tc, log_decrement_viscous=delta_v,
                zeta_viscous=log_decrement_to_zeta(delta_v) if np.isfinite(delta_v)
@@ -828,7 +840,7 @@ def pooled_fit(fits: list[TrajectoryFit]) -> dict:
         w = 1.0 / se[ok] ** 2
         mean = float(np.sum(w * v[ok]) / np.sum(w))
         s = float(1.0 / math.sqrt(np.sum(w)))
-        z = float(scipy.stats.norm.ppf(0.5 + LEVEL / 2))
+        z = float(_stats().norm.ppf(0.5 + LEVEL / 2))
         out[name], out[name + "_ci95"] = mean, [mean - z * s, mean + z * s]
     out["converged"] = all(f.converged for f in fits)
     return out

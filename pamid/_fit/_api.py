@@ -124,8 +124,7 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi") -> Fi
     """Pack a loaded bench file into a batch, one lane per muscle, with the model's inputs."""
     spec = get_model(model, bench.frame) if isinstance(model, str) else model
     groups, curves = [], []
-    for muscle in bench.muscles:
-        f = bench.for_muscle(muscle)
+    for _, f in bench.groups():
         groups.append((spec.x_from_frame(f, bench.path), f["force_N"].to_numpy()))
         curves.append(_curve_ids(f))
     return pack(groups, curves)

@@ -18,15 +18,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-import scipy.stats
 
-from ._batch import FitData
+from ._batch import FitData, map_lanes
 from ._least_squares import residuals, solve
 from ._spec import ModelSpec
 
 
 def t_critical(dof, level: float = 0.95):
     """Two-sided Student-t quantile for ``level`` with ``dof`` degrees of freedom."""
+    import scipy.stats  # imported here: it costs ~0.6 s at start-up for one quantile
+
     dof = np.asarray(dof, float)
     return np.where(dof > 0, scipy.stats.t.ppf(0.5 + level / 2, np.maximum(dof, 1)), np.nan)
 
@@ -118,9 +119,10 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     that did not converge is NaN (an unbounded or badly determined constant).
     """
     tcrit = t_critical(dof, level)
-    ends, ok = _profile_batch(
-        spec, jnp.asarray(theta), jnp.asarray(se), jnp.asarray(tcrit), jnp.asarray(s2),
-        jnp.asarray(sse), data.x, data.y, data.w, n_iter=n_iter, inner_steps=inner_steps,
+    ends, ok = map_lanes(
+        lambda *a: _profile_batch(spec, *a, n_iter=n_iter, inner_steps=inner_steps),
+        jnp.asarray(theta), jnp.asarray(se), jnp.asarray(tcrit), jnp.asarray(s2),
+        jnp.asarray(sse), data.x, data.y, data.w,
     )
     ends, ok = np.asarray(ends), np.asarray(ok)
     ends = np.where(ok, ends, np.nan)

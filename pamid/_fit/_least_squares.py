@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ._batch import FitData
+from ._batch import FitData, map_lanes
 from ._spec import ModelSpec
 from ._variable_projection import sarosi_variable_projection
 
@@ -148,18 +148,22 @@ def solve(
     if solver == "variable-projection" and spec.name != "sarosi":
         raise ValueError("variable projection is implemented for the Sárosi model only")
     if theta0 is None:
-        theta0 = spec.start(data.x, data.y, data.w)
+        theta0 = map_lanes(spec.start, data.x, data.y, data.w)
     theta0 = jnp.asarray(theta0, dtype=jnp.float64)
     if bounds is not None:
         lower, upper = (jnp.broadcast_to(jnp.asarray(b, float), theta0.shape[-1:]) for b in bounds)
         if bool(jnp.any(lower > upper)):
             raise ValueError("every lower bound must be at most its upper bound")
-        theta, ok, steps = _solve_bounded(
-            spec, theta0, data.x, data.y, data.w, lower, upper, max_steps=max(max_steps, 500)
+        theta, ok, steps = map_lanes(
+            lambda t0, x, y, w: _solve_bounded(
+                spec, t0, x, y, w, lower, upper, max_steps=max(max_steps, 500)
+            ),
+            theta0, data.x, data.y, data.w,
         )
     else:
-        theta, ok, steps = _solve_batch(
-            spec, solver, theta0, data.x, data.y, data.w, max_steps, rtol, atol
+        theta, ok, steps = map_lanes(
+            lambda t0, x, y, w: _solve_batch(spec, solver, t0, x, y, w, max_steps, rtol, atol),
+            theta0, data.x, data.y, data.w,
         )
     theta = np.asarray(theta)
     ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
@@ -169,5 +173,8 @@ def solve(
 def statistics(spec: ModelSpec, theta, data: FitData):
     """Per muscle: SSE, (JᵀJ)⁻¹, correlation of model and data, sample count, and whether
     the Jacobian has full rank at the optimum (the constants are identifiable)."""
-    out = _statistics(spec, jnp.asarray(theta), data.x, data.y, data.w)
+    out = map_lanes(
+        lambda t, x, y, w: _statistics(spec, t, x, y, w), jnp.asarray(theta), data.x, data.y,
+        data.w,
+    )
     return tuple(np.asarray(a) for a in out)
