@@ -1,0 +1,200 @@
+"""Where the time of pamid's batched Sárosi fit goes, piece by piece (helper of fit_batch.py).
+
+    .venv/bin/python benchmarks/profile_pieces.py [--n 1000] [--repeats 7]
+
+Times (median of warm calls, after one compiling call) at N muscles of virtual-bench data:
+the variable-projection start and its parts (grid scan, parabolic refinement, final QR
+solve), the optimistix Gauss–Newton solve from that start, batched LAPACK calls of the
+shapes pamid uses, and, for scale, a hand-written batched Gauss–Newton (analytic Jacobian,
+normal equations, fixed step count) in JAX and in NumPy from the same start. The hand-written
+solvers are a yardstick for what the hardware can do, not a proposal to replace pamid's.
+It also checks the scaling of ``bench_to_fit_data`` (from a CSV loaded with ``load_bench``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import fit_batch  # noqa: E402
+
+import pamid  # noqa: E402
+from pamid._fit import _variable_projection as vp  # noqa: E402
+from pamid._fit._least_squares import _solve_batch, solve  # noqa: E402
+from pamid._fit._spec import SAROSI  # noqa: E402
+
+
+def timeit(fn, repeats):
+    fn()
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        walls.append(time.perf_counter() - t0)
+    return statistics.median(walls)
+
+
+@jax.jit
+def grid_scan(x, y, w):
+    p, k = x
+
+    def one(p, k, y, w):
+        span = jnp.max(jnp.where(w > 0, jnp.abs(k), 0.0))
+        grid = vp._S_GRID / span
+        return jax.vmap(lambda a: vp._linear_solve(a, p, k, y, w, accurate=False)[1])(grid)
+
+    return jax.vmap(one)(p, k, y, w)
+
+
+@jax.jit
+def final_qr(a3, x, y, w):
+    p, k = x
+    return jax.vmap(lambda a, p, k, y, w: vp._linear_solve(a, p, k, y, w)[0])(a3, p, k, y, w)
+
+
+@jax.jit
+def batched_qr(a):
+    return jnp.linalg.qr(a)
+
+
+def _resid_jac(theta, p, k, y, w):
+    a1, a2, a3, a4, a5, a6 = (theta[:, i : i + 1] for i in range(6))
+    e = jnp.exp(a3 * k)
+    r = jnp.sqrt(w) * ((a1 * p + a2) * e + a4 * k * p + a5 * p + a6 - y)
+    jac = jnp.sqrt(w)[..., None] * jnp.stack(
+        [p * e, e, (a1 * p + a2) * k * e, k * p, p, jnp.ones_like(p)], axis=-1
+    )
+    return r, jac
+
+
+@jax.jit
+def handwritten_gn_jax(theta, x, y, w):
+    """6 Gauss–Newton steps, normal equations with column scaling, batched (yardstick)."""
+    p, k = x
+    for _ in range(6):
+        r, jac = _resid_jac(theta, p, k, y, w)
+        jtj = jnp.einsum("mni,mnj->mij", jac, jac)
+        jtr = jnp.einsum("mni,mn->mi", jac, r)
+        d = jnp.sqrt(jnp.diagonal(jtj, axis1=1, axis2=2))
+        step = jnp.linalg.solve(jtj / (d[:, :, None] * d[:, None, :]), (jtr / d)[..., None])
+        theta = theta - step[..., 0] / d
+    return theta
+
+
+def handwritten_gn_numpy(theta, p, k, y, w):
+    theta = theta.copy()
+    sw = np.sqrt(w)
+    for _ in range(6):
+        a1, a2, a3, a4, a5, a6 = (theta[:, i : i + 1] for i in range(6))
+        e = np.exp(a3 * k)
+        r = sw * ((a1 * p + a2) * e + a4 * k * p + a5 * p + a6 - y)
+        jac = sw[..., None] * np.stack(
+            [p * e, e, (a1 * p + a2) * k * e, k * p, p, np.ones_like(p)], axis=-1
+        )
+        jtj = np.einsum("mni,mnj->mij", jac, jac)
+        jtr = np.einsum("mni,mn->mi", jac, r)
+        d = np.sqrt(np.diagonal(jtj, axis1=1, axis2=2))
+        step = np.linalg.solve(jtj / (d[:, :, None] * d[:, None, :]), (jtr / d)[..., None])
+        theta = theta - step[..., 0] / d
+    return theta
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=1000)
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument(
+        "--bench-sizes",
+        type=int,
+        nargs="*",
+        default=[500, 1000, 2000],
+        help="N for the load_bench/bench_to_fit_data scaling check",
+    )
+    args = parser.parse_args(argv)
+    n, rep = args.n, args.repeats
+    _, groups, data, _, _ = fit_batch.make_data(n)
+    x, y, w = data.x, data.y, data.w
+    rows = []
+
+    def add(label, seconds):
+        rows.append((label, seconds))
+        print(f"  {label}: {fit_batch.fmt_s(seconds)}", flush=True)
+
+    print(f"N = {n}, {int(np.asarray(w).sum(axis=1).max())} samples per muscle", flush=True)
+    add("solve(gauss-newton) total", timeit(lambda: solve(SAROSI, data), rep))
+    add(
+        "  VP start (grid 24 + 6 refinements + QR)",
+        timeit(lambda: jax.block_until_ready(vp.sarosi_variable_projection_start(x, y, w)), rep),
+    )
+    add(
+        "    grid scan alone (24 normal-equation solves)",
+        timeit(lambda: jax.block_until_ready(grid_scan(x, y, w)), rep),
+    )
+    theta0 = vp.sarosi_variable_projection_start(x, y, w)
+    add(
+        "    final accurate QR solve alone",
+        timeit(lambda: jax.block_until_ready(final_qr(theta0[:, 2], x, y, w)), rep),
+    )
+    add(
+        "  Gauss-Newton (optimistix) from the VP start",
+        timeit(
+            lambda: jax.block_until_ready(
+                _solve_batch(SAROSI, "gauss-newton", theta0, x, y, w, 100, 1e-10, 1e-10)
+            ),
+            rep,
+        ),
+    )
+    a = jnp.asarray(np.random.default_rng(0).standard_normal((n, y.shape[1], 6)))
+    add(
+        f"  one batched jnp.linalg.qr of ({n}, {y.shape[1]}, 6)",
+        timeit(lambda: jax.block_until_ready(batched_qr(a)), rep),
+    )
+    add(
+        "yardstick: hand-written JAX GN, 6 steps, from VP start",
+        timeit(lambda: jax.block_until_ready(handwritten_gn_jax(theta0, x, y, w)), rep),
+    )
+    th_np0 = np.asarray(theta0)
+    p_np, k_np, y_np, w_np = (np.asarray(v) for v in (*x, y, w))
+    add(
+        "yardstick: hand-written NumPy GN, 6 steps, from VP start",
+        timeit(lambda: handwritten_gn_numpy(th_np0, p_np, k_np, y_np, w_np), rep),
+    )
+    ref = solve(SAROSI, data)[0]
+    th_j = np.asarray(handwritten_gn_jax(theta0, x, y, w))
+    th_n = handwritten_gn_numpy(th_np0, p_np, k_np, y_np, w_np)
+    rel_j = np.max(np.abs(th_j - ref) / np.abs(ref))
+    rel_n = np.max(np.abs(th_n - ref) / np.abs(ref))
+    print(f"  (yardstick vs pamid optimum: max rel diff JAX {rel_j:.1e}, NumPy {rel_n:.1e})")
+
+    if args.bench_sizes:
+        print("\nload_bench + bench_to_fit_data scaling (CSV written by the virtual bench)")
+        with tempfile.TemporaryDirectory() as tmp:
+            for m in args.bench_sizes:
+                frame = fit_batch.make_data(m)[0]
+                path = Path(tmp) / f"b{m}.csv"
+                frame.to_csv(path, index=False)
+                t0 = time.perf_counter()
+                bench = pamid.load_bench(path)
+                t1 = time.perf_counter()
+                pamid.bench_to_fit_data(bench)
+                t2 = time.perf_counter()
+                print(
+                    f"  N={m}: load_bench {fit_batch.fmt_s(t1 - t0)}, "
+                    f"bench_to_fit_data {fit_batch.fmt_s(t2 - t1)}",
+                    flush=True,
+                )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
