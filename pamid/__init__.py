@@ -99,6 +99,12 @@ from ._models._volume import closed_system_pressure_kPa as closed_system_pressur
 from ._models._volume import sleeve_pam_volume as sleeve_pam_volume
 from ._models._volume import traditional_pam_volume as traditional_pam_volume
 from ._models._volume import volume_mm3 as pam_volume_mm3
+from ._sampling._arviz import load_inference_data as load_inference_data
+from ._sampling._mcmc import McmcBudgetWarning as McmcBudgetWarning
+from ._sampling._mcmc import McmcResult as McmcResult
+from ._sampling._mcmc import fit_mcmc as fit_mcmc
+from ._sampling._posterior import Prior as Prior
+from ._sampling._posterior import default_prior as default_prior
 from ._sim._lifting_mass import LiftingMass as LiftingMass
 from ._sim._lifting_mass import LiftingMassRun as LiftingMassRun
 from ._sim._lifting_mass import hysteresis_branches as hysteresis_branches

@@ -118,6 +118,13 @@ def _cmd_fit(args) -> int:
         intervals += ("bootstrap",)
     _stage(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
            quiet)
+    if args.method == "mcmc":
+        from ._commands.mcmc import run_mcmc_fit
+
+        payload, code = run_mcmc_fit(args, bench)
+        if args.json:
+            print(json.dumps(payload))
+        return code
     _stage(f"fitting ({args.solver}; intervals: {', '.join(intervals)})", quiet)
     result = fit_least_squares(
         bench,
@@ -235,8 +242,11 @@ def _parser() -> argparse.ArgumentParser:
                      help="comma-separated: wald, profile, bootstrap (default wald,profile)")
     fit.add_argument("--bootstrap", type=int, default=0, metavar="B",
                      help="also bootstrap whole curves with B replicates per muscle")
-    fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap")
+    fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap and MCMC")
     fit.add_argument("--max-plots", type=int, default=6, help="muscles to plot (default 6)")
+    from ._commands.mcmc import add_mcmc_arguments
+
+    add_mcmc_arguments(fit)
     fit.set_defaults(func=_cmd_fit)
 
     demo = sub.add_parser("demo", help="fit the bundled virtual-bench data set, beside Table 3-1")
