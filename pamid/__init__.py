@@ -105,6 +105,12 @@ from ._sampling._mcmc import McmcResult as McmcResult
 from ._sampling._mcmc import fit_mcmc as fit_mcmc
 from ._sampling._posterior import Prior as Prior
 from ._sampling._posterior import default_prior as default_prior
+from ._sim._joint_sim import JointArm as JointArm
+from ._sim._joint_sim import JointArmRun as JointArmRun
+from ._sim._joint_sim import gravity_moment_Nm as gravity_moment_Nm
+from ._sim._joint_sim import joint_arm_torque_Nm as joint_arm_torque_Nm
+from ._sim._joint_sim import joint_equilibrium_rad as joint_equilibrium_rad
+from ._sim._joint_sim import simulate_joint_arm as simulate_joint_arm
 from ._sim._lifting_mass import LiftingMass as LiftingMass
 from ._sim._lifting_mass import LiftingMassRun as LiftingMassRun
 from ._sim._lifting_mass import hysteresis_branches as hysteresis_branches

@@ -1,5 +1,5 @@
-"""The ``pamid`` command: ``pamid fit``, ``pamid demo``, ``pamid simulate lifting-mass`` and
-``pamid damping``.
+"""The ``pamid`` command: ``pamid fit``, ``pamid demo``, ``pamid simulate lifting-mass``,
+``pamid damping`` and ``pamid check-decays``.
 
 Bad input ends with a one-line message that names the file, column and row, and exit code 2;
 no traceback. ``--json`` prints exactly one JSON object on stdout; warnings and progress go
@@ -257,6 +257,10 @@ def _parser() -> argparse.ArgumentParser:
     from ._commands import dynamics
 
     dynamics.register(sub)
+
+    from ._commands import check
+
+    check.register(sub)
     return parser
 
 
