@@ -100,6 +100,10 @@ from ._models._volume import sleeve_pam_volume as sleeve_pam_volume
 from ._models._volume import traditional_pam_volume as traditional_pam_volume
 from ._models._volume import volume_mm3 as pam_volume_mm3
 from ._sampling._arviz import load_inference_data as load_inference_data
+from ._sampling._decay_posterior import DecayPosterior as DecayPosterior
+from ._sampling._decay_posterior import DecayPredictive as DecayPredictive
+from ._sampling._decay_posterior import decay_prior as decay_prior
+from ._sampling._decay_posterior import fit_decay_mcmc as fit_decay_mcmc
 from ._sampling._mcmc import McmcBudgetWarning as McmcBudgetWarning
 from ._sampling._mcmc import McmcResult as McmcResult
 from ._sampling._mcmc import fit_mcmc as fit_mcmc
