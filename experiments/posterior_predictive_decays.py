@@ -147,8 +147,6 @@ def main(argv=None):
     from pamid._sampling._decay_posterior import decay_prior
 
     result["prior"] = decay_prior(PROTOCOL.sample_rate_Hz, STEP).describe()
-    result["prior"]["sigma"] = result["prior"]["sigma"].replace(" N", " rad").replace(
-        "force sample", "angle sample")
     write_text_atomic(out / f"{NAME}.json", json.dumps(result, indent=2, ensure_ascii=False))
     for name, case in result["cases"].items():
         print(f"{name}: coverage {case['predictive']['coverage_all']:.1%} "

@@ -36,6 +36,7 @@ class ModelSpec:
         to_x: maps those columns (NumPy arrays) to the model's ``x``.
         make: builds the model's parameter object (Sarosi, Cullinan) from ``theta``.
         source: the equation fitted, for outputs.
+        output: the fitted quantity and its unit (force in N for the static models).
     """
 
     name: str
@@ -48,6 +49,7 @@ class ModelSpec:
     to_x: Callable
     make: Callable
     source: str
+    output: tuple[str, str] = ("force", "N")
 
     @property
     def n_params(self) -> int:

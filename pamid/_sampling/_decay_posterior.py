@@ -26,8 +26,7 @@ Priors (:func:`decay_prior`; weakly informative, each a flat density on its supp
 * β(t0) and β_eq uniform on (−π, π) rad (one turn of the absolute encoder); β̇(t0) flat;
 * σ half-Cauchy with scale a few (default 3) encoder steps, 2π/2^bits rad each (12-bit
   AMT203: 1.5 mrad per step): noise of about one step is typical, a hundred steps is not
-  excluded. σ is kept in [1e-6, 1e6] rad by :mod:`._posterior` (whose prior text says N,
-  the unit of the static models; read rad here).
+  excluded. σ is kept in [1e-6, 1e6] rad by :mod:`._posterior`.
 
 The log-posterior is −inf outside this support and wherever it is not finite (NaN data,
 overflow), never NaN (:func:`pamid._sampling._posterior.log_posterior`).
@@ -147,6 +146,7 @@ DECAY_SPEC = ModelSpec(
     to_x=lambda t: (t,),
     make=lambda theta: dict(zip(DECAY_NAMES, np.asarray(theta).tolist(), strict=True)),
     source="J·β̈ + c·β̇ + k·(β − β_eq) = 0, closed form (Cullinan section VI)",
+    output=("angle", "rad"),
 )
 
 
@@ -165,6 +165,8 @@ def decay_prior(sample_rate_Hz: float, encoder_step_rad: float = DEFAULT_STEP_RA
         lower=(0.0, 0.0, -math.pi, -inf, -math.pi),
         upper=(1.0, nyquist, math.pi, inf, math.pi),
         noise_scale_N=noise_steps * encoder_step_rad,
+        noise_unit="rad",
+        noise_quantity="angle",
         notes=(
             "uniform: under-damped (0 < ζ < 1), the decay oscillates",
             f"uniform below the Nyquist frequency {nyquist:g} Hz",

@@ -361,7 +361,7 @@ class McmcResult:
 
     @property
     def var_units(self) -> dict[str, str]:
-        return {**self.param_units, "sigma": "N"}
+        return {**self.param_units, "sigma": self.spec.output[1]}
 
     @property
     def theta_mean(self) -> np.ndarray:
@@ -378,6 +378,7 @@ class McmcResult:
         and its least-squares value and Wald interval under ``"ls"``."""
         from .._fit._api import _num, _pair
 
+        unit = self.spec.output[1]  # N for force models (keys rmse_N, sigma_N), rad for decays
         muscles = []
         for i, muscle in enumerate(self.muscles):
             entries = {}
@@ -404,11 +405,11 @@ class McmcResult:
             muscles.append({
                 "muscle": muscle,
                 "n": int(self.n[i]),
-                "rmse_N": _num(self.rmse_N[i]),
+                f"rmse_{unit}": _num(self.rmse_N[i]),
                 "r": _num(self.r[i]),
                 "converged": bool(self.converged[i]),
                 "params": entries,
-                "sigma_N": sigma,
+                f"sigma_{unit}": sigma,
                 "sampling": {
                     "acceptance": _num(self.acceptance[i]),
                     "tau_max_steps": _num(self.tau_steps[i].max()),

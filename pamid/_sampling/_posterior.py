@@ -53,7 +53,9 @@ class Prior:
         names: the constants, in the order of ``theta``.
         loc, scale: centre and standard deviation of each Normal, in the constant's unit.
         lower, upper: the support of each constant (±inf for none).
-        noise_scale_N: scale of the half-Cauchy prior on the noise σ [N].
+        noise_scale_N: scale of the half-Cauchy prior on the noise σ, in ``noise_unit``
+            (N for the force models; the name is kept for them).
+        noise_unit, noise_quantity: what σ measures, for outputs ("N", "force").
         condition: optional ``condition(theta) -> bool``: a joint physical requirement
             (for Sárosi: the force at zero contraction grows with pressure); the density
             is 0 where it is False.
@@ -66,6 +68,8 @@ class Prior:
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     noise_scale_N: float = NOISE_SCALE_N
+    noise_unit: str = "N"
+    noise_quantity: str = "force"
     condition: Callable | None = None
     condition_note: str = ""
     notes: tuple[str, ...] = ()
@@ -100,8 +104,9 @@ class Prior:
             if math.isfinite(lo) or math.isfinite(hi):
                 dist += f" on ({lo:g}, {hi:g})"
             out[name] = dist + (f": {self.notes[j]}" if self.notes else "")
-        out["sigma"] = (f"HalfCauchy({self.noise_scale_N:g} N), σ in [1e-06, 1e+06] N: "
-                        "noise of one force sample")
+        u = self.noise_unit
+        out["sigma"] = (f"HalfCauchy({self.noise_scale_N:g} {u}), σ in [1e-06, 1e+06] {u}: "
+                        f"noise of one {self.noise_quantity} sample")
         if self.condition is not None:
             out["condition"] = self.condition_note
         return out
