@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pamid._data import _bench
 from pamid._data._bench import BenchData, CensoredRowsWarning, load_bench
 from pamid._errors import BenchDataError
 from pamid._io import (
@@ -636,6 +637,328 @@ def test_reserved_column_name(tmp_path):
 def test_error_is_a_value_error(tmp_path):
     with pytest.raises(ValueError):
         load_bench(tmp_path / "missing.csv")
+
+
+# ----------------------------------------------------------------------------------------
+# Loading: the fast CSV reader gives what the cell-by-cell reader gives
+# ----------------------------------------------------------------------------------------
+
+
+def load_fast_and_slow(monkeypatch, path, **kwargs) -> tuple[BenchData, BenchData]:
+    """Load ``path`` with the fast CSV reader (asserting that it read the file) and with the
+    cell-by-cell reader alone, and check that both give the same BenchData."""
+    used = []
+
+    def spy(path, shown):
+        table = real(path, shown)
+        used.append(table is not None)
+        return table
+
+    real = _bench._read_csv_fast
+    with monkeypatch.context() as patch:
+        patch.setattr(_bench, "_read_csv_fast", spy)
+        with warnings.catch_warnings(record=True) as fast_warnings:
+            warnings.simplefilter("always")
+            fast = load_bench(path, **kwargs)
+    assert used == [True], "the fast reader did not take the file"
+    with monkeypatch.context() as patch:
+        patch.setattr(_bench, "_FAST_CSV", False)
+        with warnings.catch_warnings(record=True) as slow_warnings:
+            warnings.simplefilter("always")
+            slow = load_bench(path, **kwargs)
+    assert_same_bench(fast, slow)
+    assert [str(w.message) for w in fast_warnings] == [str(w.message) for w in slow_warnings]
+    return fast, slow
+
+
+def assert_same_bench(a: BenchData, b: BenchData) -> None:
+    pd.testing.assert_frame_equal(a.frame, b.frame, check_exact=True)
+    assert a.frame["muscle"].dtype == b.frame["muscle"].dtype
+    for name in (
+        "path",
+        "has_muscle_column",
+        "muscles",
+        "l0_mm",
+        "covariates",
+        "n_censored",
+        "pressure_unit_in_file",
+    ):
+        assert getattr(a, name) == getattr(b, name), name
+    assert [type(v) for v in a.l0_mm.values()] == [type(v) for v in b.l0_mm.values()]
+
+
+def slow_error(monkeypatch, path, **kwargs) -> BenchDataError:
+    with monkeypatch.context() as patch:
+        patch.setattr(_bench, "_FAST_CSV", False)
+        with pytest.raises(BenchDataError) as info:
+            load_bench(path, **kwargs)
+    return info.value
+
+
+def bench_text(rng, n_muscles=3, rows=40, *, unit="kPa", interleave=False, censor=True) -> str:
+    """A clean bench CSV with many kinds of column (numbers written in varied ways)."""
+    header = (
+        f"muscle,time_s,pressure_{unit},length_mm,l0_mm,contraction_pct,force_N,direction,"
+        "cycle,temperature_C,velocity_mm_s,humidity,note"
+    )
+    scale = {"kPa": 1.0, "bar": 0.01, "Pa": 1000.0, "psi": 1 / KPA_PER_PSI}[unit]
+    ids = [f"M{i:03d}" for i in range(n_muscles)]
+    ids[-1] = "Müller 7"
+    order = (
+        [i % n_muscles for i in range(rows)]
+        if interleave
+        else sorted(i % n_muscles for i in range(rows))
+    )
+    clock = dict.fromkeys(range(n_muscles), 0.0)
+    lines = [header]
+    for k, m in enumerate(order):
+        clock[m] += float(rng.choice([0.5, 1.0, 2.25]))
+        l0 = [250.0, 400.5, 100.0][m % 3]
+        pct = round(float(rng.uniform(0, 30)), int(rng.integers(0, 6)))
+        force = 0.0 if censor and k % 7 == 3 else float(rng.uniform(1, 900))
+        pressure = round(float(rng.choice([100, 250.5, 312.7, rng.uniform(0, 600)])), 3) * scale
+        cells = [
+            ids[m],
+            repr(clock[m]),
+            rng.choice([repr(pressure), f"{pressure:.6g}", f"{pressure:e}"]),
+            f"{l0 * (1 - pct / 100):.4f}",
+            rng.choice(["250", "250.0", "2.5e2"]) if l0 == 250.0 else repr(l0),
+            repr(pct),
+            rng.choice([repr(force), f"{force:.3f}", "0" if force == 0 else f"{force:.2e}"]),
+            rng.choice(["1", "-1", "+1", "1.0"]),
+            str(1 + k // 10),
+            f"{rng.uniform(15, 30):.2f}",
+            repr(float(rng.normal())),
+            rng.choice(["0.5", ".61", "1e-3", "7"]),
+            rng.choice(["", "ok", "slow leak", "3", "n/a"]),
+        ]
+        lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("unit", ["kPa", "bar", "Pa", "psi"])
+@pytest.mark.parametrize("interleave", [False, True])
+@pytest.mark.parametrize("keep_censored", [False, True])
+def test_fast_reader_matches_slow_reader(tmp_path, monkeypatch, unit, interleave, keep_censored):
+    rng = np.random.default_rng([len(unit), interleave, keep_censored])
+    path = write(tmp_path, bench_text(rng, rows=60, unit=unit, interleave=interleave))
+    fast, _ = load_fast_and_slow(monkeypatch, path, keep_censored=keep_censored)
+    assert fast.covariates == ("velocity_mm_s", "humidity")
+    assert fast.muscles == ("M000", "M001", "Müller 7")
+    assert fast.l0_mm == {"M000": 250.0, "M001": 400.5, "Müller 7": 100.0}
+    assert "note" in fast.frame
+    assert (fast.n_censored > 0) != keep_censored
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        BASIC,
+        CENSORED,
+        "pressure_kPa,contraction_pct,force_N\n100,0,10\n200,5,20\n",  # no muscle column
+        csv_rows(  # l0 column, several muscles
+            "muscle,pressure_kPa,length_mm,l0_mm,force_N",
+            ["A,100,250,250,10", "A,100,200,250,20", "B,100,90,100,30", "A,1e2,2.4e2,2.5e2,1"],
+        ),
+        csv_rows(  # contraction as a length, with l0
+            "muscle,pressure_bar,contraction_mm,l0_mm,force_N",
+            ["A,2.505,10,250,10", "B,3.127,5.5,100,20", "A,0,0,250,1"],
+        ),
+        csv_rows(  # a column that is text because one cell is not a number
+            "pressure_psi,contraction_pct,force_N,remark,count",
+            ["14.5,1,10,1e,3", "87.0226,2,20,0.5,4", "1,3,30,,5"],
+        ),
+        # CRLF line ends, a byte order mark, blank lines (and blanks) at the end
+        "\ufeffmuscle,pressure_kPa,contraction_pct,force_N\r\nA,100,5,10\r\nB,200,6,20\r\n\r\n",
+        "muscle,pressure_kPa,contraction_pct,force_N\nA,100,5,10\nB,200,6,20\n  \n\n",
+        # blanks around names and text cells (the slow reader strips them)
+        " muscle , pressure_kPa,contraction_pct ,force_N\n A ,100,5,10\nA,200,6,20\n B,1,2,3\n",
+        "muscle,pressure_kPa,contraction_pct,force_N,note\nA,100,5,10, x \nA,200,6,20,x\n",
+        # a covariate with blanks around its numbers
+        "pressure_kPa,contraction_pct,force_N,humidity\n100,5,10, 0.5\n100,5,10,\t7\n",
+    ],
+)
+def test_fast_reader_matches_slow_reader_small(tmp_path, monkeypatch, text):
+    path = write(tmp_path, text)
+    kwargs = {"l0_mm": 250.0} if "l0_mm" not in text and "length_mm" in text else {}
+    load_fast_and_slow(monkeypatch, path, **kwargs)
+
+
+def test_fast_reader_with_l0_argument(tmp_path, monkeypatch):
+    text = csv_rows("pressure_kPa,length_mm,force_N", ["100,250,10", "100,225,20", "1,200,0"])
+    fast, _ = load_fast_and_slow(monkeypatch, write(tmp_path, text), l0_mm=250)
+    assert fast.l0_mm == {"muscle": 250.0}
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "muscle;pressure_kPa;contraction_pct;force_N\nA;100;5;10\n",  # semicolons
+        'muscle,pressure_kPa,contraction_pct,force_N\n"A",100,5,10\n',  # quotes
+        "\nmuscle,pressure_kPa,contraction_pct,force_N\nA,100,5,10\n",  # blank first line
+        "muscle,pressure_kPa,contraction_pct,force_N\nA,100,5,10\n\nA,200,5,10\n",  # blank line
+        "muscle,pressure_kPa,contraction_pct,force_N\nA, 100,5,10\n",  # blank in a number
+        "muscle,pressure_kPa,contraction_pct,force_N\nA,1_00,5,10\n",  # underscore
+        "muscle,pressure_kPa,contraction_pct,force_N\nA,١٠٠,5,10\n",  # Arabic-Indic digits
+        "muscle,pressure_kPa,contraction_pct,force_N,\nA,100,5,10,\n",  # trailing commas
+        "muscle,pressure_kPa,contraction_pct,force_N\rA,100,5,10\rB,1,2,3\r",  # lone CR
+        "muscle,pressure_kPa,contraction_pct,force_N\nA,100,5,10\nA,100,5\n",  # ragged
+        "muscle,pressure_kPa,contraction_pct,force_N\nA,100,5,10\n,,,\nA,1,5,10\n",
+    ],
+)
+def test_files_the_fast_reader_leaves_to_the_slow_reader(tmp_path, monkeypatch, text):
+    path = write(tmp_path, text)
+    assert _bench._read_csv_fast(path, str(path)) is None
+    try:
+        data = load_bench(path)
+    except BenchDataError as err:
+        slow = slow_error(monkeypatch, path)
+        assert (str(err), err.row, err.line) == (str(slow), slow.row, slow.line)
+    else:
+        with monkeypatch.context() as patch:
+            patch.setattr(_bench, "_FAST_CSV", False)
+            assert_same_bench(data, load_bench(path))
+
+
+def test_latin1_file_is_left_to_the_slow_reader(tmp_path, monkeypatch):
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(
+        "muscle,pressure_kPa,contraction_pct,force_N\nMüller,1,5,10\n".encode("latin-1")
+    )
+    assert _bench._read_csv_fast(path, str(path)) is None
+    assert load_bench(path).muscles == ("Müller",)
+
+
+def test_censored_rows_warning_points_at_the_caller(tmp_path):
+    with pytest.warns(CensoredRowsWarning) as record:
+        load_bench(write(tmp_path, CENSORED))
+    assert record[0].filename == __file__
+
+
+@pytest.mark.parametrize(
+    ("rows", "kwargs"),
+    [
+        (["A,100,5,10", "A,-102,5,10"], {}),  # negative absolute pressure
+        (["A,100,5,10", "A,100,60,10"], {}),  # contraction out of range
+        (["A,100,5,10", "A,100,5,0", "A,100,5,0.0"], {}),  # fine, but...
+        (["A,100,5,0", "B,100,5,-0"], {}),  # ...all censored
+        (["A,100,5,10", "B,100,5,True"], {}),  # pandas would read True as 1
+        (["A,100,5,10", "B,100,5,nan"], {}),
+        (["A,100,5,10", ",100,5,10"], {}),  # empty muscle id
+        (["A,100,5,10", " ,100,5,10"], {}),  # blank muscle id
+    ],
+)
+def test_fast_reader_errors_match_slow_reader(tmp_path, monkeypatch, rows, kwargs):
+    path = write(tmp_path, csv_rows("muscle,pressure_kPa,contraction_pct,force_N", rows))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", CensoredRowsWarning)
+            load_bench(path, **kwargs)
+    except BenchDataError as err:
+        slow = slow_error(monkeypatch, path, **kwargs)
+        assert (str(err), err.column, err.row, err.line) == (
+            str(slow),
+            slow.column,
+            slow.row,
+            slow.line,
+        )
+    else:
+        load_fast_and_slow(monkeypatch, path, **kwargs)
+
+
+def test_l0_and_time_checks_name_the_first_offending_row(tmp_path, monkeypatch):
+    # Interleaved muscles: the vectorised checks must find the same rows as a loop would.
+    rows = ["A,0,100,250,250,10", "B,0,100,90,100,10", "A,1,100,240,250,10", "B,1,100,80,100,1"]
+    header = "muscle,time_s,pressure_kPa,length_mm,l0_mm,force_N"
+    bad_l0 = [*rows, "B,2,100,80,101,1", "A,2,100,230,260,1"]
+    err = raises(write(tmp_path, csv_rows(header, bad_l0)), "constant within a muscle")
+    assert (err.column, err.row, err.line) == ("l0_mm", 5, 6)
+    assert "101 here but 100 on row 2 for muscle 'B'" in str(err)
+    bad_time = [*rows, "A,3,100,230,250,1", "B,1,100,80,100,1", "A,2,100,230,250,1"]
+    err = raises(write(tmp_path, csv_rows(header, bad_time)), "not later than 1 s on row 4")
+    assert (err.column, err.row, err.line) == ("time_s", 6, 7)
+    assert "of muscle 'B'" in str(err)
+    assert str(err) == str(slow_error(monkeypatch, tmp_path / "bench.csv"))
+
+
+@pytest.mark.parametrize(
+    ("column", "cell", "message"),
+    [
+        ("force_N", "abc", "'abc' is not a number"),  # the fast reader leaves the file
+        (  # the fast reader reads the file, the check after it finds the problem
+            "time_s",
+            "0.5",
+            "time_s 0.5 s is not later than 49.0 s on row 249999 of muscle 'M0833'; "
+            "time must increase strictly within a muscle",
+        ),
+    ],
+)
+def test_bad_cell_deep_in_a_large_file(tmp_path, column, cell, message):
+    n, bad = 250_200, 250_000  # rows; the bad one, 1-based
+    frame = pd.DataFrame(
+        {
+            "muscle": np.repeat([f"M{i:04d}" for i in range(n // 300 + 1)], 300)[:n],
+            "time_s": np.tile(np.arange(300) * 0.5, n // 300 + 1)[:n],
+            "pressure_bar": np.tile([1.0, 2.505, 3.127], n // 3),
+            "contraction_pct": np.tile(np.round(np.linspace(0.0, 30.0, 300), 2), n // 300 + 1)[:n],
+            "force_N": np.tile(np.round(np.linspace(500.0, 10.0, 300), 3), n // 300 + 1)[:n],
+        }
+    )
+    frame[column] = frame[column].astype(str)
+    frame.loc[bad - 1, column] = cell
+    path = tmp_path / "large.csv"
+    frame.to_csv(path, index=False)
+    err = raises(path, message)
+    assert str(err) == f"{path}, column '{column}', row {bad} (line {bad + 1}): {message}"
+    assert (err.column, err.row, err.line) == (column, bad, bad + 1)
+
+
+def test_fast_pressure_conversion_is_the_exact_text_conversion(tmp_path, monkeypatch):
+    rng = np.random.default_rng(7)
+    kpa = np.round(rng.uniform(0, 700, 500), 3)
+    for unit, factor in (("bar", 100), ("Pa", 1e-3), ("psi", KPA_PER_PSI)):
+        cells = [f"{p / factor:.{rng.integers(1, 8)}g}" for p in kpa] + BAR
+        rows = [f"{p},5,10" for p in cells]
+        path = write(tmp_path, csv_rows(f"pressure_{unit},contraction_pct,force_N", rows))
+        fast, _ = load_fast_and_slow(monkeypatch, path)
+        got = fast.frame["pressure_kPa"].to_numpy()
+        np.testing.assert_array_equal(got, pressure_text_to_kPa(cells, unit))
+    rows = [f"{p},5,10" for p in BAR]
+    path = write(tmp_path, csv_rows("pressure_bar,contraction_pct,force_N", rows))
+    assert load_bench(path).frame["pressure_kPa"].tolist() == [float(p) for p in KPA]
+
+
+def test_plain_numbers_read_as_python_reads_them():
+    # Every cell the fast reader takes as a number is one Python's float() reads, to the same
+    # float64: random strings over the characters it accepts, and some chosen ones.
+    pa = pytest.importorskip("pyarrow")
+    rng = np.random.default_rng(3)
+    alphabet = np.array(list("0123456789+-.eE"))
+    cells = ["".join(rng.choice(alphabet, size=rng.integers(1, 12))) for _ in range(6_000)]
+    digits = np.array(list("0123456789"))
+    for _ in range(3_000):  # well-formed numbers, long mantissas, extreme exponents
+        mantissa = "".join(rng.choice(digits, size=rng.integers(1, 40)))
+        point = int(rng.integers(0, len(mantissa) + 1))
+        exponent = int(rng.integers(-340, 320))
+        sign = str(rng.choice(["", "-", "+"]))
+        cells.append(f"{sign}{mantissa[:point]}.{mantissa[point:]}e{exponent}")
+    cells += ["1.", ".5", "+.5e-3", "-0", "0e0", "1e", "e1", ".", "+", "1e+", "--1", "1.2.3"]
+    cells += ["0.1000000000000000055511151231257827021181583404541015625", "9007199254740993"]
+    cells += ["2.4703282292062328e-324", "1.7976931348623158e308", "1.7976931348623159e308"]
+    taken = 0
+    for cell in cells:
+        values = _bench._plain_numbers(pa.chunked_array([pa.array([cell], pa.string())]))
+        if values is None:
+            continue
+        taken += 1
+        expected = float(cell)
+        assert "_" not in cell and np.isfinite(expected)
+        assert values[0] == expected and np.signbit(values[0]) == np.signbit(expected), cell
+    assert taken > 3_000
+    # one column, several chunks
+    column = pa.chunked_array([pa.array(["1", "2.5"]), pa.array(["-3e2"])])
+    assert _bench._plain_numbers(column).tolist() == [1.0, 2.5, -300.0]
+    assert _bench._plain_numbers(pa.chunked_array([pa.array(["1", " 2"])])) is None
 
 
 # ----------------------------------------------------------------------------------------

@@ -29,6 +29,13 @@ A column whose name starts with a known quantity (``pressure``, ``force``, ``len
 quantity's accepted units; ``force_kN`` or ``time_ms`` are errors rather than silently
 ignored columns.
 
+Reading CSV
+-----------
+A plain CSV file (comma-separated, header on line 1, no quotes, no blank lines, no
+ragged rows, numbers written plainly) is read column by column with pyarrow; every other file,
+and every file with a problem, is read cell by cell with Python's csv module, which reports
+the problem. Both give the same result, to the bit.
+
 Censoring
 ---------
 Published force maps mark the lengths a muscle cannot reach at a given pressure with a
@@ -38,6 +45,7 @@ force of exactly 0 N. Such rows are dropped (with a :class:`CensoredRowsWarning`
 
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import math
@@ -162,6 +170,11 @@ class _Column:
     null: np.ndarray | None = None
     original: object = None
     parsed: np.ndarray | None = None  # float64 values of a text column, once checked
+    # Set only by the fast CSV reader, which has checked and converted the column already:
+    numeric: bool | None = None  # an extra column: numeric covariate (True) or text (False)
+    kpa: np.ndarray | None = None  # a pressure column: kPa, converted exactly from the text
+    codes: np.ndarray | None = None  # a text column: its stripped cells are uniques[codes],
+    uniques: np.ndarray | None = None  # uniques distinct and in order of first appearance
 
     def raw(self, i: int) -> str:
         """Cell ``i`` as it reads in the file, for messages."""
@@ -181,6 +194,7 @@ class _Table:
     n_rows: int
     lines: list[int] | None  # file line of each data row (CSV only)
     is_csv: bool
+    first_line: int | None = None  # fast CSV path: data row i (0-based) is on line i + first_line
 
     def error(self, message: str, *, column: str | None = None, index: int | None = None):
         """A BenchDataError for data row ``index`` (0-based) of ``column``."""
@@ -189,6 +203,8 @@ class _Table:
             row = int(index) + 1
             if self.lines is not None:
                 line = self.lines[int(index)]
+            elif self.first_line is not None:
+                line = int(index) + self.first_line
         return BenchDataError(self.path, message, column=column, row=row, line=line)
 
 
@@ -229,8 +245,8 @@ def _read_bytes(path: Path, shown: str) -> bytes:
     return data
 
 
-def _read_csv(path: Path, shown: str) -> _Table:
-    """Read a CSV file cell by cell, keeping the file line of every data row."""
+def _read_csv_bytes(path: Path, shown: str) -> bytes:
+    """The bytes of a file to be read as CSV, after the checks that it is text at all."""
     data = _read_bytes(path, shown)
     if data[:4] == b"PAR1":
         raise BenchDataError(
@@ -240,6 +256,16 @@ def _read_csv(path: Path, shown: str) -> _Table:
         raise BenchDataError(
             shown, "not a table: the file holds binary data, expected CSV text or Parquet"
         )
+    return data
+
+
+def _read_csv(path: Path, shown: str) -> _Table:
+    """Read a CSV file cell by cell, keeping the file line of every data row.
+
+    This is the reference reader: it reads every file pamid reads as CSV and words every
+    problem.
+    """
+    data = _read_csv_bytes(path, shown)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -304,6 +330,201 @@ def _check_duplicates(shown: str, names: list[str]) -> None:
                 column=name,
             )
         seen[name] = j
+
+
+# --------------------------------------------------------------------------------------
+# Fast CSV reader, for large, plain files
+# --------------------------------------------------------------------------------------
+
+#: Whether :func:`load_bench` tries the fast, column-wise CSV reader first. Switched off, every
+#: CSV file goes through the cell-by-cell reader (tests and benchmarks compare the two).
+_FAST_CSV = True
+
+#: Bytes a plain decimal number is written with.
+_NUMBER_BYTES = np.zeros(256, dtype=bool)
+_NUMBER_BYTES[np.frombuffer(b"0123456789+-.eE", dtype=np.uint8)] = True
+
+
+def _plain_numbers(chunked) -> np.ndarray | None:
+    """Float64 values of a pyarrow string column whose every cell is a plain decimal number.
+
+    A cell qualifies if it is written with the characters ``0-9 + - . e E`` only and pyarrow
+    parses it as a finite number. Such a cell is in the syntax of Python's ``float()`` (what
+    the cell-by-cell reader uses), and both round the decimal value to the nearest float64,
+    so the two readers give the same number. None if any cell does not qualify (an empty
+    cell, blanks, an underscore, 'nan', '1e', text, ...).
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    step = 1 << 20
+    ok = np.empty(step, dtype=bool)  # reused, so that the check allocates nothing big
+    values = np.empty(len(chunked), dtype=np.float64)
+    at = 0
+    for chunk in chunked.chunks:
+        if chunk.null_count or chunk.type != pa.string():
+            return None
+        _, offsets, data = chunk.buffers()
+        offsets = np.frombuffer(offsets, dtype=np.int32)
+        start, stop = offsets[chunk.offset], offsets[chunk.offset + len(chunk)]
+        text = np.frombuffer(data, dtype=np.uint8) if stop > start else None
+        for k in range(start, stop, step):
+            part = text[k : min(k + step, stop)]
+            if not np.take(_NUMBER_BYTES, part, out=ok[: len(part)]).all():
+                return None
+        try:
+            floats = pc.cast(chunk, pa.float64())
+        except (pa.ArrowException, ValueError):
+            return None
+        values[at : at + len(chunk)] = floats.to_numpy(zero_copy_only=False)
+        at += len(chunk)
+    if not np.isfinite(values).all():
+        return None
+    return values
+
+
+def _factorize_text(chunked) -> tuple[np.ndarray, np.ndarray]:
+    """The stripped cells of a pyarrow string column as ``uniques[codes]``.
+
+    ``uniques`` (an object array of str) are distinct and in order of first appearance, so
+    code k first appears after code k - 1 does. Python strips each distinct cell once.
+    """
+    encoded = chunked.combine_chunks().dictionary_encode()
+    raw_codes = encoded.indices.to_numpy(zero_copy_only=False)
+    stripped = np.array([cell.strip() for cell in encoded.dictionary.to_pylist()], dtype=object)
+    text_ids, texts = pd.factorize(stripped)  # cells that differ only in blanks merge here
+    codes, order = pd.factorize(text_ids[raw_codes])
+    return codes.astype(np.int64, copy=False), np.asarray(texts, dtype=object)[order]
+
+
+def _text_values(uniques: np.ndarray, codes: np.ndarray):
+    """A frame column holding ``uniques[codes]``, of the dtype pandas gives a list of str."""
+    return pd.Series(uniques.tolist()).take(codes).array
+
+
+def _is_utf8(data: bytes) -> bool:
+    """Whether ``data`` is valid UTF-8, as the cell-by-cell reader decodes it then."""
+    if data.isascii():
+        return True
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    view = memoryview(data)
+    step = 1 << 24  # in pieces, so that no copy of the whole file is made
+    try:
+        for k in range(0, len(data), step):
+            decoder.decode(view[k : k + step])
+        decoder.decode(b"", final=True)
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def _fast_column(name: str, chunked, n: int) -> _Column | None:
+    """One column for the fast reader, or None if the cell-by-cell reader must read the file."""
+    if name == "muscle":
+        codes, uniques = _factorize_text(chunked)
+        return _Column(name, codes=codes, uniques=uniques)
+    no_nulls = np.broadcast_to(False, (n,))
+    values = _plain_numbers(chunked)
+    if values is not None:
+        column = _Column(name, values=values, null=no_nulls, parsed=values)
+        if name in PRESSURE_COLUMNS and PRESSURE_COLUMNS[name] != "kPa":
+            codes, uniques = _factorize_text(chunked)
+            column.kpa = pressure_text_to_kPa(uniques, PRESSURE_COLUMNS[name])[codes]
+        return column
+    if name in ("direction", "cycle") or _quantity_of(name) is not None:
+        return None  # a quantity that is not all plain numbers
+    codes, uniques = _factorize_text(chunked)
+    if not _all_numbers(uniques):  # text, kept as it is
+        column = _Column(name, codes=codes, uniques=uniques, numeric=False)
+        column.original = _text_values(uniques, codes)
+        return column
+    if any(_number_problem(cell) is not None for cell in uniques):
+        return None  # a numeric covariate with a problem
+    parsed = np.array([float(cell) for cell in uniques], dtype=np.float64)[codes]
+    return _Column(name, values=parsed, null=no_nulls, parsed=parsed)
+
+
+def _read_csv_fast(path: Path, shown: str) -> _Table | None:
+    """Read a plain CSV file column by column with pyarrow, or return None.
+
+    Plain: comma-separated with the header on line 1, its names distinct and non-empty; no
+    quote characters, NUL bytes, lone carriage returns or blank lines (blank lines at the
+    end aside); every row with exactly as many cells as the header has names; every cell of
+    a numeric column a plain decimal number (see :func:`_plain_numbers`). Data row i is then
+    on line i + 1 and every cell reads as the cell-by-cell reader reads it. For any other
+    file (not UTF-8, say), or any cell in doubt, the answer is None and the cell-by-cell
+    reader takes over; it also words every problem, so messages do not depend on which
+    reader ran.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+
+    data = _read_csv_bytes(path, shown)
+    if b'"' in data or b"\0" in data or not _is_utf8(data):
+        return None
+    if b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
+        return None  # a lone carriage return
+    header_end = data.find(b"\n")
+    if header_end < 0:
+        return None
+    end = len(data)
+    while end > header_end and data[end - 1] in b" \t\r\n":
+        end -= 1  # blank lines at the end of the file (and blanks the slow reader strips)
+    if end <= header_end:
+        return None  # no data rows
+    try:
+        header = data[:header_end].rstrip(b"\r").decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return None
+    if "," not in header or not header.isprintable():
+        return None
+    names = [name.strip() for name in header.split(",")]
+    if not all(names) or len(set(names)) != len(names):
+        return None
+
+    keys = [f"c{j}" for j in range(len(names))]
+    n_lines = data.count(b"\n", header_end + 1, end) + 1
+    body = pa.py_buffer(data).slice(header_end + 1, end - header_end - 1)
+    del data  # memory: ``body`` holds the bytes as long as they are needed
+    try:
+        arrow = pa_csv.read_csv(
+            pa.BufferReader(body),
+            read_options=pa_csv.ReadOptions(column_names=keys, block_size=1 << 24),
+            parse_options=pa_csv.ParseOptions(
+                delimiter=",",
+                quote_char=False,
+                double_quote=False,
+                escape_char=False,
+                newlines_in_values=False,
+                ignore_empty_lines=False,
+            ),
+            convert_options=pa_csv.ConvertOptions(
+                column_types=dict.fromkeys(keys, pa.string()),
+                null_values=[],
+                strings_can_be_null=False,
+                quoted_strings_can_be_null=False,
+                check_utf8=True,
+            ),
+        )
+    except (pa.ArrowException, ValueError):
+        return None
+    del body
+    n = arrow.num_rows
+    if n != n_lines:
+        return None
+
+    columns: dict[str, _Column] = {}
+    for key, name in zip(keys, names, strict=True):
+        chunked = arrow.column(key)
+        arrow = arrow.drop_columns([key])  # memory: the column goes once converted
+        try:
+            column = _fast_column(name, chunked, n)
+        except pa.ArrowException:  # e.g. a text column too large to combine into one array
+            return None
+        if column is None:
+            return None
+        columns[name] = column
+    return _Table(shown, names, columns, n, None, is_csv=True, first_line=2)
 
 
 def _read_parquet(path: Path, shown: str) -> _Table:
@@ -411,6 +632,8 @@ def _number_problem(cell: str) -> str | None:
 
 def _first_problem(col: _Column) -> tuple[int, str] | None:
     """The first row of ``col`` that is not a finite number, with the reason."""
+    if col.parsed is not None:
+        return None  # checked already
     if col.text is not None:
         # Fast path: numpy parses the whole column; the slow loop only finds the bad cell.
         try:
@@ -440,7 +663,7 @@ def _first_problem(col: _Column) -> tuple[int, str] | None:
 def _as_floats(col: _Column) -> np.ndarray:
     """Float64 values of a column already known to hold only finite numbers."""
     if col.parsed is not None:
-        return col.parsed.copy()
+        return col.parsed  # made for this column by the reader or by _first_problem
     if col.text is not None:
         return np.array([float(cell) for cell in col.text], dtype=np.float64)
     return col.values.astype(np.float64, copy=True)
@@ -452,9 +675,16 @@ def _is_numeric_extra(col: _Column) -> bool:
     Parquet: a numeric column type. Text: at least one non-empty cell, and every non-empty
     cell reads as a number (NaN and inf included, so that they are reported as errors).
     """
+    if col.numeric is not None:
+        return col.numeric
     if col.text is None:
         return True
-    filled = [cell for cell in col.text if cell]
+    return _all_numbers(col.text)
+
+
+def _all_numbers(cells) -> bool:
+    """At least one non-empty cell, and every non-empty cell reads as a number."""
+    filled = [cell for cell in cells if cell]
     if not filled:
         return False
     for cell in filled:
@@ -512,6 +742,20 @@ def _first_true(mask: np.ndarray) -> int | None:
     return int(np.argmax(mask)) if mask.any() else None
 
 
+def _previous_rows(codes: np.ndarray) -> np.ndarray:
+    """For every row, the index of the previous row with the same code (-1 if none)."""
+    n = len(codes)
+    if n and (np.diff(codes) >= 0).all():  # the usual layout: each muscle in one block
+        previous = np.arange(-1, n - 1)
+        previous[np.diff(codes, prepend=-1) != 0] = -1
+        return previous
+    order = np.argsort(codes, kind="stable")  # rows grouped by code, in file order within
+    previous = np.full(n, -1, dtype=np.int64)
+    same = codes[order[1:]] == codes[order[:-1]]
+    previous[order[1:][same]] = order[:-1][same]
+    return previous
+
+
 def load_bench(
     path: str | os.PathLike,
     *,
@@ -560,10 +804,21 @@ def load_bench(
         l0_value = None
 
     if p.suffix.lower() in PARQUET_SUFFIXES:
-        table = _read_parquet(p, shown)
-    else:
-        table = _read_csv(p, shown)
+        return _interpret(_read_parquet(p, shown), l0_value, keep_censored)
+    if _FAST_CSV:
+        table = _read_csv_fast(p, shown)
+        if table is not None:
+            try:
+                return _interpret(table, l0_value, keep_censored)
+            except BenchDataError:
+                pass  # the cell-by-cell reader finds the problem again and words it exactly
+            del table
+    return _interpret(_read_csv(p, shown), l0_value, keep_censored)
 
+
+def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> BenchData:
+    """Check the table's columns and build the BenchData (the body of :func:`load_bench`)."""
+    shown = table.path
     _check_units(table)
     pressure_col = _check_required(table, l0_value)
     pressure_unit = PRESSURE_COLUMNS[pressure_col]
@@ -594,26 +849,39 @@ def load_bench(
     values.update({name: _as_floats(cols[name]) for name in covariates})
 
     # ---- muscle ids ----
+    # As codes into the distinct ids (in order of first appearance): muscle id of row i is
+    # uniques[codes[i]]; ``ids``, the list of every row's id, only where the reader gave it.
+    ids: list[str] | None = None
     if "muscle" in cols:
         muscle_col = cols["muscle"]
-        if muscle_col.text is not None:
-            ids = list(muscle_col.text)
-            missing = [cell == "" for cell in ids]
+        if muscle_col.codes is not None:
+            codes, uniques = muscle_col.codes, muscle_col.uniques
+            missing = (uniques == "")[codes]
         else:
-            ids = [muscle_col.raw(i) for i in range(n)]
-            missing = list(muscle_col.null)
-        i = _first_true(np.asarray(missing, dtype=bool))
+            if muscle_col.text is not None:
+                ids = list(muscle_col.text)
+                missing = np.asarray([cell == "" for cell in ids], dtype=bool)
+            else:
+                ids = [muscle_col.raw(i) for i in range(n)]
+                missing = np.asarray(muscle_col.null, dtype=bool)
+            codes, uniques = pd.factorize(np.asarray(ids, dtype=object))
+            uniques = np.asarray(uniques, dtype=object)
+        i = _first_true(missing)
         if i is not None:
             raise table.error("empty muscle id; every row needs one", column="muscle", index=i)
         has_muscle = True
     else:
         ids = ["muscle"] * n
+        codes, uniques = np.zeros(n, dtype=np.int64), np.array(["muscle"], dtype=object)
         has_muscle = False
-    ids_arr = np.asarray(ids, dtype=object)
+    # Row where each muscle first appears: code k first appears after code k - 1 does.
+    first_row = np.flatnonzero(codes > np.maximum.accumulate(np.concatenate(([-1], codes[:-1]))))
 
     # ---- pressure ----
     pressure_col_obj = cols[pressure_col]
-    if table.is_csv and pressure_unit != "kPa":
+    if pressure_col_obj.kpa is not None:
+        pressure_kpa = pressure_col_obj.kpa
+    elif table.is_csv and pressure_unit != "kPa":
         pressure_kpa = pressure_text_to_kPa(pressure_col_obj.text, pressure_unit)
     else:
         pressure_kpa = pressure_to_kPa(values[pressure_col], pressure_unit)
@@ -641,17 +909,17 @@ def load_bench(
     l0_rows: np.ndarray | None = None
     if "l0_mm" in values:
         l0_rows = values["l0_mm"]
-        first_l0: dict[str, tuple[int, float]] = {}
-        for i, (muscle_id, l0) in enumerate(zip(ids, l0_rows, strict=True)):
-            ref = first_l0.setdefault(muscle_id, (i, l0))
-            if l0 != ref[1]:
-                raise table.error(
-                    f"l0_mm is {cols['l0_mm'].raw(i)} here but {cols['l0_mm'].raw(ref[0])} on "
-                    f"row {ref[0] + 1} for muscle '{muscle_id}'; the nominal length must be "
-                    "constant within a muscle",
-                    column="l0_mm",
-                    index=i,
-                )
+        # The first row whose l0 differs from that on the first row of its muscle.
+        i = _first_true(l0_rows != l0_rows[first_row[codes]])
+        if i is not None:
+            ref = int(first_row[codes[i]])
+            raise table.error(
+                f"l0_mm is {cols['l0_mm'].raw(i)} here but {cols['l0_mm'].raw(ref)} on "
+                f"row {ref + 1} for muscle '{uniques[codes[i]]}'; the nominal length must be "
+                "constant within a muscle",
+                column="l0_mm",
+                index=i,
+            )
         if l0_value is not None:
             i = _first_true(l0_rows != l0_value)
             if i is not None:
@@ -733,13 +1001,12 @@ def load_bench(
     if "time_s" in values:
         time = values["time_s"]
         # For every row, the index of the previous row of the same muscle (-1 if none).
-        previous = pd.Series(np.arange(n)).groupby(ids_arr, sort=False).shift(fill_value=-1)
-        previous = previous.to_numpy()
+        previous = _previous_rows(codes)
         has_prev = previous >= 0
         i = _first_true(has_prev & (time <= time[np.maximum(previous, 0)]))
         if i is not None:
             j = int(previous[i])
-            whose = f" of muscle '{ids[i]}'" if has_muscle else ""
+            whose = f" of muscle '{uniques[codes[i]]}'" if has_muscle else ""
             raise table.error(
                 f"time_s {cols['time_s'].raw(i)} s is not later than {cols['time_s'].raw(j)} s "
                 f"on row {j + 1}{whose}; time must increase strictly within a muscle",
@@ -749,7 +1016,7 @@ def load_bench(
 
     # ---- assemble the frame ----
     data: dict[str, object] = {
-        "muscle": ids,
+        "muscle": ids if ids is not None else _text_values(uniques, codes),
         "pressure_kPa": pressure_kpa.astype(np.float64),
     }
     if contraction is not None:
@@ -770,8 +1037,10 @@ def load_bench(
         elif name in text_extras:
             data[name] = cols[name].original
     data["source_row"] = np.arange(1, n + 1, dtype=np.int64)
+    # No copy: every array in ``data`` was made here for this frame.
     frame = pd.DataFrame(
-        {k: (v.to_numpy() if isinstance(v, pd.Series) else v) for k, v in data.items()}
+        {k: (v.to_numpy() if isinstance(v, pd.Series) else v) for k, v in data.items()},
+        copy=False,
     )
 
     # ---- censoring ----
@@ -784,10 +1053,11 @@ def load_bench(
                 "Pass keep_censored=True (--keep-censored) to keep them",
                 column="force_N",
             )
-        before = list(dict.fromkeys(ids))
         frame = frame.loc[~censored].reset_index(drop=True)
-        kept = set(frame["muscle"])
-        gone = [m for m in before if m not in kept]
+        kept_codes = codes[~censored]
+        present = np.zeros(len(uniques), dtype=bool)
+        present[kept_codes] = True
+        gone = uniques[~present].tolist()
         note = ""
         if gone:
             note = "; muscles with only censored rows, left out: " + ", ".join(
@@ -797,18 +1067,18 @@ def load_bench(
             f"{shown}: dropped {n_censored} censored rows (force_N exactly 0) out of {n}"
             f"{note}; pass keep_censored=True to keep them",
             CensoredRowsWarning,
-            stacklevel=2,
+            stacklevel=3,  # the caller of load_bench
         )
     else:
         n_censored = 0
+        kept_codes = codes
 
-    muscles = tuple(dict.fromkeys(frame["muscle"].tolist()))
-    # One pass over the table (l0 is constant within a muscle, checked above).
-    if "l0_mm" in frame:
-        first_rows = frame.drop_duplicates("muscle")
-        l0_per_muscle: dict[str, float | None] = dict(
-            zip(first_rows["muscle"], first_rows["l0_mm"].astype(float), strict=True)
-        )
+    # Muscles in order of first appearance among the kept rows.
+    kept_muscles = pd.unique(kept_codes) if len(kept_codes) < n else np.arange(len(uniques))
+    muscles = tuple(uniques[kept_muscles].tolist())
+    if l0_rows is not None:  # constant within a muscle, checked above
+        l0_of = l0_rows[first_row[kept_muscles]].astype(float).tolist()
+        l0_per_muscle: dict[str, float | None] = dict(zip(muscles, l0_of, strict=True))
     else:
         l0_per_muscle = dict.fromkeys(muscles)
 
