@@ -574,29 +574,35 @@ def _read_parquet(path: Path, shown: str) -> _Table:
 # --------------------------------------------------------------------------------------
 
 
-def _quantity_of(name: str) -> str | None:
-    """The known quantity a column name starts with (case-insensitive), or None."""
+def _quantity_of(name: str, quantities=None) -> str | None:
+    """The known quantity a column name starts with (case-insensitive), or None.
+
+    ``quantities`` maps quantity → accepted units (default: the bench-file table; decay
+    files pass their own)."""
+    quantities = QUANTITY_UNITS if quantities is None else quantities
     lower = name.lower()
-    for quantity in QUANTITY_UNITS:
+    for quantity in quantities:
         if lower == quantity or lower.startswith(quantity + "_"):
             return quantity
     return None
 
 
-def _check_units(table: _Table) -> None:
+def _check_units(table: _Table, quantities=None) -> None:
+    """Every column named after a known quantity carries one of its accepted units."""
+    quantities = QUANTITY_UNITS if quantities is None else quantities
     for name in table.names:
         if name in _RESERVED:
             raise table.error(
                 "this column name is reserved for the row numbers pamid adds; rename it",
                 column=name,
             )
-        quantity = _quantity_of(name)
+        quantity = _quantity_of(name, quantities)
         if quantity is None:
             continue
-        accepted = [f"{quantity}_{unit}" for unit in QUANTITY_UNITS[quantity]]
+        accepted = [f"{quantity}_{unit}" for unit in quantities[quantity]]
         if name in accepted:
             continue
-        units = ", ".join(QUANTITY_UNITS[quantity])
+        units = ", ".join(quantities[quantity])
         spelled = [a for a in accepted if a.lower() == name.lower()]
         if spelled:
             raise table.error(

@@ -44,6 +44,12 @@ from .._data._bench import (
     _read_parquet,
     _Table,
 )
+from .._data._bench import (
+    _check_units as _bench_check_units,
+)
+from .._data._bench import (
+    _quantity_of as _bench_quantity_of,
+)
 from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_to_kPa
 
 __all__ = ["MIN_SAMPLES", "DecayData", "load_decay"]
@@ -58,7 +64,6 @@ DECAY_QUANTITIES: dict[str, tuple[str, ...]] = {
     "pressure1": PRESSURE_UNITS,
     "pressure2": PRESSURE_UNITS,
 }
-_RESERVED = ("source_row",)
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,41 +105,11 @@ class DecayData:
 
 
 def _quantity_of(name: str) -> str | None:
-    lower = name.lower()
-    for quantity in DECAY_QUANTITIES:
-        if lower == quantity or lower.startswith(quantity + "_"):
-            return quantity
-    return None
+    return _bench_quantity_of(name, DECAY_QUANTITIES)
 
 
 def _check_units(table: _Table) -> None:
-    for name in table.names:
-        if name in _RESERVED:
-            raise table.error(
-                "this column name is reserved for the row numbers pamid adds; rename it",
-                column=name,
-            )
-        quantity = _quantity_of(name)
-        if quantity is None:
-            continue
-        accepted = [f"{quantity}_{unit}" for unit in DECAY_QUANTITIES[quantity]]
-        if name in accepted:
-            continue
-        units = ", ".join(DECAY_QUANTITIES[quantity])
-        spelled = [a for a in accepted if a.lower() == name.lower()]
-        if spelled:
-            raise table.error(
-                f"units are case-sensitive: name the column {spelled[0]} "
-                f"(accepted units for {quantity}: {units})",
-                column=name,
-            )
-        given = name[len(quantity) + 1:] if len(name) > len(quantity) else ""
-        what = f"unknown unit '{given}'" if given else "no unit in the column name"
-        raise table.error(
-            f"{what} for {quantity}; accepted units: {units} "
-            f"(name the column {' or '.join(accepted)})",
-            column=name,
-        )
+    _bench_check_units(table, DECAY_QUANTITIES)
 
 
 def _check_required(table: _Table) -> tuple[str, str]:
