@@ -748,6 +748,26 @@ def _first_true(mask: np.ndarray) -> int | None:
     return int(np.argmax(mask)) if mask.any() else None
 
 
+def _check_time_increases(
+    table, time_raw, time, codes, names, group: str, has_group: bool
+) -> None:
+    """Time must increase strictly within each group (muscle, trial): error at the first row
+    where it does not, naming the earlier row it fails against. ``codes`` are integer group
+    codes per row, ``names`` the group name per code, ``group`` the word for a group;
+    ``has_group`` False when the file has no group column (one group)."""
+    previous = _previous_rows(codes)
+    i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
+    if i is not None:
+        j = int(previous[i])
+        whose = f" of {group} '{names[codes[i]]}'" if has_group else ""
+        raise table.error(
+            f"time_s {time_raw(i)} s is not later than {time_raw(j)} s "
+            f"on row {j + 1}{whose}; time must increase strictly within a {group}",
+            column="time_s",
+            index=i,
+        )
+
+
 def _previous_rows(codes: np.ndarray) -> np.ndarray:
     """For every row, the index of the previous row with the same code (-1 if none)."""
     n = len(codes)
@@ -1005,20 +1025,8 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
                 index=i,
             )
     if "time_s" in values:
-        time = values["time_s"]
-        # For every row, the index of the previous row of the same muscle (-1 if none).
-        previous = _previous_rows(codes)
-        has_prev = previous >= 0
-        i = _first_true(has_prev & (time <= time[np.maximum(previous, 0)]))
-        if i is not None:
-            j = int(previous[i])
-            whose = f" of muscle '{uniques[codes[i]]}'" if has_muscle else ""
-            raise table.error(
-                f"time_s {cols['time_s'].raw(i)} s is not later than {cols['time_s'].raw(j)} s "
-                f"on row {j + 1}{whose}; time must increase strictly within a muscle",
-                column="time_s",
-                index=i,
-            )
+        _check_time_increases(table, cols["time_s"].raw, values["time_s"], codes, uniques,
+                              "muscle", has_muscle)
 
     # ---- assemble the frame ----
     data: dict[str, object] = {

@@ -38,6 +38,7 @@ import pandas as pd
 from .._data._bench import (
     PARQUET_SUFFIXES,
     _as_floats,
+    _check_time_increases,
     _first_problem,
     _first_true,
     _read_csv,
@@ -188,18 +189,9 @@ def load_decay(path: str | os.PathLike) -> DecayData:
 
     # ---- time: strictly increasing within a trial ----
     time = values["time_s"]
-    previous = pd.Series(np.arange(n)).groupby(ids_arr, sort=False).shift(fill_value=-1)
-    previous = previous.to_numpy()
-    i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
-    if i is not None:
-        j = int(previous[i])
-        whose = f" of trial '{ids[i]}'" if has_trial else ""
-        raise table.error(
-            f"time_s {cols['time_s'].raw(i)} s is not later than {cols['time_s'].raw(j)} s on "
-            f"row {j + 1}{whose}; time must increase strictly within a trial",
-            column="time_s",
-            index=i,
-        )
+    trial_codes, trial_names = pd.factorize(ids_arr)
+    _check_time_increases(table, cols["time_s"].raw, time, trial_codes, trial_names, "trial",
+                          has_trial)
 
     # ---- enough samples per trial ----
     trials = tuple(dict.fromkeys(ids))
