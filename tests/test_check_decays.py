@@ -104,3 +104,25 @@ def test_wrong_model_shows_large_errors_and_text_output(recorded, capsys):
     with pytest.raises(ValueError, match="neither zeta"):
         run_cli(["check-decays", str(path), "--model-json", str(model), "--inertia", "0.46"],
                 capsys)
+
+
+@pytest.mark.slow
+def test_check_decays_with_posterior_draws(recorded, capsys):
+    """--posterior-draws: MCMC per trial, draws simulated in one call, band and coverage."""
+    tmp, path = recorded
+    code, cap = run_cli(["damping", str(path), "--inertia", str(J), "--json"], capsys)
+    assert code == 0
+    (tmp / "fit_pd.json").write_text(cap.out)
+    out = tmp / "check_pd"
+    code, cap = run_cli(["check-decays", str(path), "--model-json", str(tmp / "fit_pd.json"),
+                         "--inertia", str(J), "--posterior-draws", "50", "--seed", "1",
+                         "--json", "--out", str(out)], capsys)
+    assert code == 0
+    payload = json.loads(cap.out)
+    for row in payload["trials"]:
+        post = row["posterior"]
+        assert post["draws"] == 50 and post["converged"]
+        assert 0.85 <= post["band95_coverage"] <= 1.0  # noise: half an encoder step + rounding
+        lo, hi = post["zeta"]["eti95"]
+        assert lo < 0.05 < hi
+    assert (out / f"predictive_{payload['trials'][0]['trial']}.png").exists()

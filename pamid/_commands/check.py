@@ -54,6 +54,12 @@ def register(subparsers) -> None:
     chk.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     chk.add_argument("--out", help="folder for check_<trial>.png and check_decays.json")
     chk.add_argument("--max-plots", type=int, default=12, help="trials to plot (default 12)")
+    chk.add_argument("--posterior-draws", type=int, default=0, dest="posterior_draws",
+                     metavar="N",
+                     help="also sample the posterior of every trial (MCMC) and simulate N "
+                          "draws per trial in one batched call: 95%% predictive band and "
+                          "its coverage of the recording (default 0: off)")
+    chk.add_argument("--seed", type=int, default=0, help="PRNG seed for the posterior draws")
     chk.set_defaults(func=cmd_check_decays)
 
 
@@ -186,11 +192,39 @@ def cmd_check_decays(args) -> int:
                "inertia_kg_m2": inertia, "n_trials": len(rows),
                "simulator": "linear oscillator (Cullinan section VI), exact sampled solution",
                "trials": rows}
+    posterior = pred = None
+    if args.posterior_draws < 0:
+        raise ValueError(f"--posterior-draws must be >= 0, got {args.posterior_draws}")
+    if args.posterior_draws:
+        import jax
+
+        from .._sampling._decay_posterior import fit_decay_mcmc
+
+        _stage(f"sampling the posterior of {len(data.trials)} trial(s), then "
+               f"{args.posterior_draws} draws per trial through the simulator", quiet)
+        k_fit, k_pred = jax.random.split(jax.random.key(args.seed))
+        posterior = fit_decay_mcmc(data, key=k_fit, progress=not quiet)
+        pred = posterior.predictive(k_pred, n_draws=args.posterior_draws)
+        coverage = pred.coverage()
+        for row, post, cov in zip(rows, posterior.intervals(inertia), coverage, strict=True):
+            row["posterior"] = {
+                "draws": args.posterior_draws,
+                "band95_coverage": float(cov),
+                "zeta": post["zeta"],
+                "natural_frequency_Hz": post["natural_frequency_Hz"],
+                "converged": post["converged"],
+            }
     if args.out:
         out = Path(args.out)
         refuse_overwrite_input(out / "check_decays.json", [args.decay, args.model_json])
         _stage(f"writing plots to {out}", quiet)
         payload["plots"] = _plot(curves, rows, out, args.max_plots)
+        if pred is not None:
+            for i, trial in enumerate(posterior.trials[: args.max_plots]):
+                name = f"predictive_{trial}.png"
+                posterior.plot_predictive(pred, i, path=out / name,
+                                          title=f"Posterior predictive, trial {trial}")
+                payload["plots"].append(name)
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
     text = json.dumps(payload)
     if args.out:
@@ -211,6 +245,16 @@ def _text(d: dict) -> str:
         lines.append(f"  {r['trial']:<6} {r['model']:<14} {r['rms_error_rad']:<11.3g} "
                      f"{r['frequency_error_Hz']:<+14.3g} {r['zeta_error']:<+10.3g} "
                      f"{r['model_zeta']:.4g} / {r['recorded_zeta']:.4g}")
+    posts = [r for r in d["trials"] if "posterior" in r]
+    if posts:
+        lines.append(f"posterior ({posts[0]['posterior']['draws']} draws per trial, simulated "
+                     "in one batched call):")
+        lines.append("  trial  inside 95% band   ζ 95% (posterior)      f_n 95% [Hz]")
+        for r in posts:
+            p = r["posterior"]
+            z, f = p["zeta"]["eti95"], p["natural_frequency_Hz"]["eti95"]
+            lines.append(f"  {r['trial']:<6} {p['band95_coverage']:<17.1%} "
+                         f"[{z[0]:.4g}, {z[1]:.4g}]      [{f[0]:.5g}, {f[1]:.5g}]")
     return "\n".join(lines)
 
 
