@@ -35,6 +35,8 @@ from ._dynamics._decay import log_decrement_to_zeta as log_decrement_to_zeta
 from ._dynamics._decay import moment_of_inertia_eq12 as moment_of_inertia_eq12
 from ._dynamics._decay_data import DecayData as DecayData
 from ._dynamics._decay_data import load_decay as load_decay
+from ._dynamics._joint_fit import JointDecayFit as JointDecayFit
+from ._dynamics._joint_fit import fit_joint_decays as fit_joint_decays
 from ._errors import BenchDataError as BenchDataError
 from ._fit._api import FitResult as FitResult
 from ._fit._api import bench_to_fit_data as bench_to_fit_data
