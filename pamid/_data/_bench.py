@@ -703,6 +703,22 @@ def _all_numbers(cells) -> bool:
     return True
 
 
+def _check_missing(table: _Table, missing: list[str], n_required: int, kind: str) -> None:
+    """Raise for missing required columns (naming them and the columns found), or for a
+    table with a header but no rows. ``kind`` names the table ("bench", "decay") in the
+    message used when none of the ``n_required`` columns is there."""
+    if missing:
+        names = table.names
+        found = ", ".join(names) if names else "none"
+        lead = "missing required column" + ("s" if len(missing) > 1 else "")
+        if len(missing) == n_required:
+            lead = f"not a {kind} table: none of the required columns were found; missing"
+        column = missing[0].split(" ")[0] if len(missing) == 1 else None
+        raise table.error(f"{lead}: {'; '.join(missing)}. Columns found: {found}", column=column)
+    if table.n_rows == 0:
+        raise table.error("no data rows: the file has a header but no data below it")
+
+
 def _check_required(table: _Table, l0_arg: float | None) -> str:
     """Check the required columns are there; return the pressure column's name."""
     names = table.names
@@ -720,15 +736,7 @@ def _check_required(table: _Table, l0_arg: float | None) -> str:
         missing.append("force_N")
     if not {"contraction_pct", "contraction_mm", "length_mm"} & set(names):
         missing.append("contraction_pct (or contraction_mm, or length_mm with l0_mm)")
-    if missing:
-        found = ", ".join(names) if names else "none"
-        lead = "missing required column" + ("s" if len(missing) > 1 else "")
-        if len(missing) == 3:
-            lead = "not a bench table: none of the required columns were found; missing"
-        column = missing[0].split(" ")[0] if len(missing) == 1 else None
-        raise table.error(f"{lead}: {'; '.join(missing)}. Columns found: {found}", column=column)
-    if table.n_rows == 0:
-        raise table.error("no data rows: the file has a header but no data below it")
+    _check_missing(table, missing, n_required=3, kind="bench")
     if (
         not {"contraction_pct", "contraction_mm"} & set(names)
         and "l0_mm" not in names

@@ -38,6 +38,7 @@ import pandas as pd
 from .._data._bench import (
     PARQUET_SUFFIXES,
     _as_floats,
+    _check_missing,
     _check_time_increases,
     _first_problem,
     _first_true,
@@ -127,16 +128,7 @@ def _check_required(table: _Table) -> tuple[str, str]:
         missing.append("time_s")
     if not angles:
         missing.append("angle_rad (or angle_deg)")
-    if missing:
-        found = ", ".join(names) if names else "none"
-        lead = "missing required column" + ("s" if len(missing) > 1 else "")
-        if len(missing) == 2:
-            lead = "not a decay table: none of the required columns were found; missing"
-        column = missing[0].split(" ")[0] if len(missing) == 1 else None
-        raise table.error(f"{lead}: {'; '.join(missing)}. Columns found: {found}",
-                          column=column)
-    if table.n_rows == 0:
-        raise table.error("no data rows: the file has a header but no data below it")
+    _check_missing(table, missing, n_required=2, kind="decay")
     for quantity in ("pressure1", "pressure2"):
         columns = [n for n in names if _quantity_of(n) == quantity]
         if len(columns) > 1:
