@@ -106,6 +106,17 @@ class _Sensors:
         )
 
 
+def _sensors_of(protocol) -> _Sensors:
+    """The sensor model of a protocol (both protocols carry the same sensor fields)."""
+    return _Sensors(
+        protocol.angle_resolution_rad,
+        protocol.pressure_noise_sd_kPa,
+        protocol.pressure_resolution_kPa,
+        protocol.force_noise_sd_N,
+        protocol.force_resolution_N,
+    )
+
+
 def _check_sensors(protocol) -> None:
     for name in (
         "angle_resolution_rad",
@@ -154,13 +165,7 @@ class JointSweepProtocol:
         _check_sensors(self)
 
     def sensors(self) -> _Sensors:
-        return _Sensors(
-            self.angle_resolution_rad,
-            self.pressure_noise_sd_kPa,
-            self.pressure_resolution_kPa,
-            self.force_noise_sd_N,
-            self.force_resolution_N,
-        )
+        return _sensors_of(self)
 
 
 @jax.jit
@@ -328,13 +333,7 @@ class DeflectionProtocol:
         _check_sensors(self)
 
     def sensors(self) -> _Sensors:
-        return _Sensors(
-            self.angle_resolution_rad,
-            self.pressure_noise_sd_kPa,
-            self.pressure_resolution_kPa,
-            self.force_noise_sd_N,
-            self.force_resolution_N,
-        )
+        return _sensors_of(self)
 
 
 @jax.jit
