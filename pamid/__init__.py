@@ -23,6 +23,14 @@ from ._data._virtual_joint import JointSweepProtocol as JointSweepProtocol
 from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
 from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
 from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
+from ._data._virtual_effects import InjectedCompliance as InjectedCompliance
+from ._data._virtual_effects import InjectedCovariate as InjectedCovariate
+from ._data._virtual_effects import InjectedDrift as InjectedDrift
+from ._data._virtual_effects import InjectedHysteresis as InjectedHysteresis
+from ._data._virtual_effects import InjectedTemperature as InjectedTemperature
+from ._data._virtual_effects import InjectedViscousDamping as InjectedViscousDamping
+from ._diagnose._api import Diagnosis as Diagnosis
+from ._diagnose._api import diagnose as diagnose
 from ._dynamics._decay import DecayReport as DecayReport
 from ._dynamics._decay import DecrementEstimate as DecrementEstimate
 from ._dynamics._decay import Extrema as Extrema

@@ -261,6 +261,10 @@ def _parser() -> argparse.ArgumentParser:
     from ._commands import check
 
     check.register(sub)
+
+    from ._commands import diagnose
+
+    diagnose.register(sub)
     return parser
 
 

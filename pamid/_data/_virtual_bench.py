@@ -10,7 +10,11 @@ comes from here, from pamid's own code, with its constants and noise recorded.
 Effects the static model lacks can be switched on; the default protocol has none but
 sensor noise and resolution. ``hysteresis_N_per_bar`` makes the force direction dependent:
 the extending branch lies above the contracting one by 2·h·p (Sárosi's upper curve F_f and
-lower curve F_a, eq. 2.3–2.4).
+lower curve F_a, eq. 2.3–2.4). ``effects`` takes any of the effects of
+:mod:`pamid._data._virtual_effects` (hysteresis of several forms, temperature, load-cell
+drift, rig compliance, viscous damping, any logged covariate), alone or together; the file
+then carries what a real logger would (a temperature column, say) but never says which
+effect is in the force.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import pandas as pd
 
 from .._models._sarosi import Sarosi, sarosi_force
 from .._units import KPA_PER_BAR
+from ._virtual_effects import InjectedCompliance
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +51,9 @@ class SarosiProtocol:
         length_resolution_mm: the encoder's step (Sárosi's LINIMIK MSA 320: 0.01 mm).
         hysteresis_N_per_bar: half height of the hysteresis loop per bar of pressure.
         seconds_per_point: time between samples, for the `time_s` column.
+        sweep_seconds_per_point: if given, the time between samples of each sweep in turn
+            (cycled over the sweeps), so that sweeps run at different speeds.
+        effects: effects hidden in the force (:mod:`pamid._data._virtual_effects`).
     """
 
     pressures_kPa: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -61,6 +69,8 @@ class SarosiProtocol:
     length_resolution_mm: float = 0.01
     hysteresis_N_per_bar: float = 0.0
     seconds_per_point: float = 2.0
+    sweep_seconds_per_point: tuple[float, ...] | None = None
+    effects: tuple = ()
 
     def __post_init__(self):
         if self.points_per_curve < 2:
@@ -71,6 +81,10 @@ class SarosiProtocol:
             raise ValueError("directions must be +1 (contracting) or -1 (extending)")
         if self.l0_mm <= 0:
             raise ValueError("l0_mm must be positive")
+        if self.sweep_seconds_per_point is not None and (
+            not self.sweep_seconds_per_point or min(self.sweep_seconds_per_point) <= 0
+        ):
+            raise ValueError("sweep_seconds_per_point must hold positive durations")
 
 
 def _sweep_end_pct(params: Sarosi, pressure_bar, kappa_max_pct, min_force_N):
@@ -147,9 +161,15 @@ def simulate_sarosi_bench(
     length_set = protocol.l0_mm * (1.0 - kappa_sweeps / 100.0)
     length_read = _quantize(length_set, protocol.length_resolution_mm)
     kappa_true = 100.0 * (protocol.l0_mm - length_read) / protocol.l0_mm
+    kappa_true_read = kappa_true  # what the file says; compliance moves the muscle's own
 
     direction = np.asarray(protocol.directions, float)[None, None, :, None]
     p_grid = p_bar[None, :, None, None]
+    compliance = [e for e in protocol.effects if isinstance(e, InjectedCompliance)]
+    if compliance:
+        kappa_true = _compliant_contraction(
+            batched, p_grid, kappa_true, sum(e.mm_per_N for e in compliance), protocol.l0_mm
+        )
     f_true = np.asarray(
         jax.vmap(lambda prm, k: sarosi_force(prm, jnp.asarray(p_grid[0]), k))(
             batched, jnp.asarray(kappa_true)
@@ -157,36 +177,109 @@ def simulate_sarosi_bench(
     )
     f_true = f_true - direction * protocol.hysteresis_N_per_bar * p_grid
 
+    n_rep = protocol.repeats
+    cycles = [None] if protocol.average_repeats else list(range(1, n_rep + 1))
+    n_points = protocol.points_per_curve
+    n_sweeps = len(cycles) * len(p_bar) * len(protocol.directions)
+    spp = _sweep_seconds(protocol, n_sweeps).reshape(len(cycles), 1, len(p_bar), -1, 1)
+    starts = np.concatenate([[0.0], np.cumsum(spp.ravel() * n_points)[:-1]])
+    time = starts.reshape(spp.shape) + spp * np.arange(n_points)  # (C, 1, P, D, K)
+    time = np.broadcast_to(time, (len(cycles), n_muscles, *time.shape[2:]))
+
+    extra_columns: dict[str, np.ndarray] = {}
+    force_effects = [e for e in protocol.effects if not isinstance(e, InjectedCompliance)]
+    if force_effects:
+        key, effect_key = jax.random.split(key)
+        seed = int(jax.random.randint(effect_key, (), 0, 2**31 - 1))
+        ctx = _effect_context(protocol, p_grid, kappa_true, ends, spp, time, direction, seed)
+        added = np.zeros(time.shape)
+        for effect in force_effects:
+            if hasattr(effect, "columns"):
+                for name, values in effect.columns(ctx).items():
+                    values = np.broadcast_to(values, time.shape)
+                    ctx[name] = values
+                    extra_columns[name] = values
+            added = added + effect.force_N(ctx)
+        f_true = f_true[None] + added  # (C, M, P, D, K)
+
     noise = protocol.noise_sd_N * np.asarray(
-        jax.random.normal(key, (n_rep, *f_true.shape), dtype=jnp.float64)
+        jax.random.normal(key, (n_rep, *kappa_true.shape), dtype=jnp.float64)
     )
-    readings = _quantize(f_true[None] + noise, protocol.force_resolution_N)  # (R, M, P, D, K)
+    readings = _quantize(
+        (f_true if f_true.ndim == 5 else f_true[None]) + noise, protocol.force_resolution_N
+    )  # (R, M, P, D, K)
     if protocol.average_repeats:
         readings = readings.mean(axis=0, keepdims=True)
-        cycles = [None]
-    else:
-        cycles = list(range(1, n_rep + 1))
 
     frames = []
-    n_points = protocol.points_per_curve
     for m, muscle in enumerate(muscle_ids):
-        t0 = 0.0
         for c_index, cycle in enumerate(cycles):
             for pi, p_kpa in enumerate(protocol.pressures_kPa):
                 for di, d in enumerate(protocol.directions):
-                    time = t0 + protocol.seconds_per_point * np.arange(n_points)
-                    t0 = time[-1] + protocol.seconds_per_point
                     block = {
                         "muscle": muscle,
                         "pressure_kPa": float(p_kpa),
                         "length_mm": np.round(length_read[m, pi, di], 6),
                         "l0_mm": protocol.l0_mm,
-                        "contraction_pct": np.round(kappa_true[m, pi, di], 9),
+                        "contraction_pct": np.round(kappa_true_read[m, pi, di], 9),
                         "force_N": np.round(readings[c_index, m, pi, di], 6),
                         "direction": d,
-                        "time_s": time,
+                        "time_s": np.round(time[c_index, m, pi, di], 9),
                     }
                     if cycle is not None:
                         block["cycle"] = cycle
+                    for name, values in extra_columns.items():
+                        block[name] = np.round(values[c_index, m, pi, di], 9)
                     frames.append(pd.DataFrame(block))
     return pd.DataFrame(pd.concat(frames, ignore_index=True))
+
+
+def _sweep_seconds(protocol: SarosiProtocol, n_sweeps: int) -> np.ndarray:
+    if protocol.sweep_seconds_per_point is None:
+        return np.full(n_sweeps, protocol.seconds_per_point)
+    durations = np.asarray(protocol.sweep_seconds_per_point, float)
+    return durations[np.arange(n_sweeps) % len(durations)]
+
+
+def _compliant_contraction(batched, p_grid, kappa_read, mm_per_N, l0_mm):
+    """Solve F = F_model(p, κ_read + 100·c·F/l0) for the muscle's true contraction (Newton).
+
+    The rig's stretch c·F shortens the muscle below what the rod position says
+    (:class:`~pamid._data._virtual_effects.InjectedCompliance`).
+    """
+    gain = 100.0 * mm_per_N / l0_mm
+
+    def one(prm, k_read):
+        p = jnp.asarray(p_grid[0])
+
+        def residual(f):
+            return f - sarosi_force(prm, p, k_read + gain * f)
+
+        f = sarosi_force(prm, p, k_read)
+        for _ in range(30):
+            r, dr = jax.jvp(residual, (f,), (jnp.ones_like(f),))
+            f = f - r / dr
+        return k_read + gain * f
+
+    return np.asarray(jax.vmap(one)(batched, jnp.asarray(kappa_read)))
+
+
+def _effect_context(protocol, p_grid, kappa, ends, spp, time, direction, seed):
+    """The arrays an injected effect sees (:mod:`pamid._data._virtual_effects`)."""
+    n_points = protocol.points_per_curve
+    step_mm = ends[None, :, :, None, None] / max(n_points - 1, 1) * protocol.l0_mm / 100.0
+    shape = time.shape
+    sweep = np.broadcast_to(
+        np.arange(shape[0] * shape[2] * shape[3]).reshape(shape[0], 1, shape[2], shape[3], 1),
+        shape,
+    )
+    return {
+        "p_bar": np.broadcast_to(p_grid[None], shape),
+        "kappa_pct": np.broadcast_to(kappa[None], shape),
+        "direction": np.broadcast_to(direction[None], shape),
+        "time_s": time,
+        "velocity_mm_s": np.broadcast_to(direction[None] * step_mm / spp, shape),
+        "sweep": sweep,
+        "point_fraction": np.broadcast_to(np.linspace(0.0, 1.0, n_points), shape),
+        "rng": np.random.default_rng(seed),
+    }

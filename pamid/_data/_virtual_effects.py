@@ -1,0 +1,197 @@
+"""Effects the virtual bench can hide in its data: what real rigs add to the static model.
+
+Each class here is one physical effect that Sárosi's static force model (eq. 2.1) does not
+declare. :class:`~pamid._data._virtual_bench.SarosiProtocol` takes any number of them in its
+``effects`` field, in any size and in more than one functional form, so that the diagnosis
+of issue #5 (``pamid diagnose``) can be tested on data whose file does not mention them.
+An effect may add a column to the file (temperature, a humidity reading) as a real logger
+would, but never says that the force depends on it.
+
+Every effect sees a context of arrays that broadcast to the shape (C, M, P, D, K) — cycle
+(1 when repeats are averaged), muscle, pressure, direction, point — and returns the force it
+adds, in N:
+
+``p_bar`` gauge pressure (bar); ``kappa_pct`` contraction (%); ``direction`` +1 contracting,
+−1 extending; ``time_s`` the time of the sample from the start of the muscle's test;
+``velocity_mm_s`` the rate of contraction (positive while contracting); ``sweep`` the index
+of the sweep (cycle-major) within a muscle; ``rng`` a NumPy Generator made from the bench's
+JAX key.
+
+Compliance is different: it changes the muscle's length, not the force reading, so the
+bench applies it inside the force law (see :class:`InjectedCompliance`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = [
+    "InjectedCompliance",
+    "InjectedCovariate",
+    "InjectedDrift",
+    "InjectedHysteresis",
+    "InjectedTemperature",
+    "InjectedViscousDamping",
+]
+
+_P_REF_BAR = 3.0  # the pressure at which every form of the hysteresis has the same size
+
+
+def _check_form(form: str, forms: tuple[str, ...], what: str) -> None:
+    if form not in forms:
+        raise ValueError(f"unknown {what} form {form!r}; choose one of {forms}")
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedHysteresis:
+    """Direction-dependent force: the extending branch above the contracting one.
+
+    Sárosi's upper (F_f) and lower (F_a) curves, eq. 2.3–2.4: the force read while the muscle
+    contracts lies ``h(p)`` below the static curve, and ``h(p)`` above it while it extends.
+
+    Forms of the half height h(p), all equal to ``N_at_3_bar`` at p = 3 bar:
+    ``linear`` h ∝ p (what the library's ``hysteresis`` effect assumes, with an offset),
+    ``sqrt`` h ∝ √p, ``constant`` h independent of p (pure dry friction), ``quadratic`` h ∝ p².
+    """
+
+    N_at_3_bar: float = 9.0
+    form: str = "linear"
+
+    def __post_init__(self):
+        _check_form(self.form, ("linear", "sqrt", "constant", "quadratic"), "hysteresis")
+
+    def force_N(self, ctx):
+        u = np.maximum(ctx["p_bar"], 0.0) / _P_REF_BAR
+        shape = {"linear": u, "sqrt": np.sqrt(u), "constant": np.ones_like(u),
+                 "quadratic": u**2}[self.form]
+        return -ctx["direction"] * self.N_at_3_bar * shape
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedTemperature:
+    """Force changing with the muscle's temperature, and the thermometer column that shows it.
+
+    The bladder softens as it warms, so the force at a given pressure and contraction changes
+    by ``(N_per_K + N_per_bar_K·p)·(T − T_ref)`` (``linear``) or by that slope times
+    ``(T − T_ref)·|T − T_ref| / 10 K`` (``quadratic``). Each sweep is run at its own
+    temperature, drawn uniformly in ``range_C`` (a climate chamber, or a muscle warmed by
+    earlier cycling), and the temperature creeps by ``ramp_K`` over the sweep; the file gets
+    a ``temperature_C`` column rounded to ``resolution_C``.
+    """
+
+    N_per_K: float = -0.5
+    N_per_bar_K: float = -0.3
+    range_C: tuple[float, float] = (20.0, 45.0)
+    ramp_K: float = 1.0
+    reference_C: float = 25.0
+    resolution_C: float = 0.1
+    form: str = "linear"
+
+    def __post_init__(self):
+        _check_form(self.form, ("linear", "quadratic"), "temperature")
+
+    def columns(self, ctx):
+        lo, hi = self.range_C
+        sweep = ctx["sweep"]
+        level = ctx["rng"].uniform(lo, hi, size=sweep.shape[:-1] + (1,))
+        k = ctx["point_fraction"]
+        t = level + self.ramp_K * k
+        if self.resolution_C > 0:
+            t = np.round(t / self.resolution_C) * self.resolution_C
+        return {"temperature_C": t}
+
+    def force_N(self, ctx):
+        dt = ctx["temperature_C"] - self.reference_C
+        if self.form == "quadratic":
+            dt = dt * np.abs(dt) / 10.0
+        return (self.N_per_K + self.N_per_bar_K * ctx["p_bar"]) * dt
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedDrift:
+    """A slow change of the force reading with time: load-cell zero drift.
+
+    ``linear``: ``N_per_hour`` per hour from the start of the test; ``exponential``: the zero
+    settles towards ``N_per_hour`` with the time constant ``time_constant_s`` (a strain gauge
+    warming up), i.e. N_per_hour·(1 − e^(−t/τ)).
+    """
+
+    N_per_hour: float = 20.0
+    form: str = "linear"
+    time_constant_s: float = 600.0
+
+    def __post_init__(self):
+        _check_form(self.form, ("linear", "exponential"), "drift")
+
+    def force_N(self, ctx):
+        t = ctx["time_s"]
+        if self.form == "linear":
+            return self.N_per_hour * t / 3600.0
+        return self.N_per_hour * (1.0 - np.exp(-t / self.time_constant_s))
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedCompliance:
+    """The rig stretches under load: the encoder reads the rod, not the muscle.
+
+    The load cell, its mounts and a cable between them stretch by ``mm_per_N``·F, so the muscle
+    is that much shorter than the rod position says: its true contraction is
+    κ = κ_read + 100·c·F/l0, and the force solves F = F_model(p, κ_read + 100·c·F/l0).
+    """
+
+    mm_per_N: float = 0.01
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedViscousDamping:
+    """A force opposing the rate of contraction: F − g·v (Cullinan's −G·ẏ term, eq. 3).
+
+    Needs sweeps run at different speeds to be told apart from hysteresis; give the
+    protocol ``sweep_seconds_per_point``.
+    """
+
+    N_s_per_mm: float = 2.0
+
+    def force_N(self, ctx):
+        return -self.N_s_per_mm * ctx["velocity_mm_s"]
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedCovariate:
+    """Any other influence: a logged quantity (``column``) that the force depends on.
+
+    Each sweep gets its own value drawn uniformly in ``range``, rounded to ``resolution``,
+    written to the column; the force changes by ``N_per_unit·(v − mid)`` (``linear``),
+    ``N_per_unit·(v − mid)²/half_range`` (``quadratic``) or
+    ``N_per_unit·half_range·sin(π·(v − mid)/half_range)`` (``sine``), with ``mid`` and
+    ``half_range`` the centre and half width of ``range``.
+    """
+
+    column: str = "humidity_pct"
+    range: tuple[float, float] = (30.0, 70.0)
+    N_per_unit: float = 0.3
+    form: str = "linear"
+    resolution: float = 0.1
+
+    def __post_init__(self):
+        _check_form(self.form, ("linear", "quadratic", "sine"), "covariate")
+
+    def columns(self, ctx):
+        lo, hi = self.range
+        v = ctx["rng"].uniform(lo, hi, size=ctx["sweep"].shape[:-1] + (1,))
+        v = np.broadcast_to(v, ctx["sweep"].shape[:-1] + (ctx["point_fraction"].shape[-1],))
+        if self.resolution > 0:
+            v = np.round(v / self.resolution) * self.resolution
+        return {self.column: v}
+
+    def force_N(self, ctx):
+        lo, hi = self.range
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        u = ctx[self.column] - mid
+        if self.form == "linear":
+            return self.N_per_unit * u
+        if self.form == "quadratic":
+            return self.N_per_unit * u**2 / half
+        return self.N_per_unit * half * np.sin(np.pi * u / half)

@@ -1,0 +1,1 @@
+"""Closing the loop (issue #5): residual analysis, candidate effects, forward selection."""

@@ -1,0 +1,197 @@
+"""``pamid.diagnose``: find what a fitted model misses, name it, model it, report the gain.
+
+The procedure (issue #5):
+
+1. Fit the baseline model (Sárosi eq. 2.1 or Cullinan eq. 3 for bench files; the linear
+   damped oscillator for decay files). Analyse its residual: whiteness of the time-ordered
+   residual (runs test, Ljung–Box) and its dependence on every covariate — the file's own
+   columns and derived ones (direction of motion, speed, elapsed time, temperature, cycle,
+   pressure, contraction, force level).
+2. Refit with each candidate effect (:mod:`pamid._diagnose._static`), batched.
+3. Select by BIC and cross-validated error on held-out curves, forward, until nothing
+   significant remains (:mod:`pamid._diagnose._select`).
+4. Report the ranked candidates, the selected effects' constants with 95 % intervals, the
+   error before and after (RMSE, max error, per covariate bin) and what stays unexplained.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ._residual import covariate_dependence, ljung_box, runs_test
+from ._select import forward_select
+
+#: A covariate stays "unexplained" when the final residual depends on it with p below this.
+UNEXPLAINED_P = 1e-3
+
+
+@dataclasses.dataclass
+class Diagnosis:
+    """What :func:`diagnose` found. :meth:`to_dict` is the ``--json`` object."""
+
+    path: str
+    kind: str
+    model: str
+    n: int
+    n_groups: int
+    rmse_before: float
+    rmse_after: float
+    max_error_before: float
+    max_error_after: float
+    cv_rmse_before: float
+    cv_rmse_after: float
+    selected: list[str]
+    dropped: list[dict]
+    candidates: list[dict]
+    steps: list[dict]
+    constants: list[dict]
+    groups: list[str]
+    residual_before: dict
+    residual_after: dict
+    unexplained: list[str]
+    table: pd.DataFrame = dataclasses.field(repr=False, default=None)
+
+    def to_dict(self) -> dict:
+        def plain(v):
+            if isinstance(v, dict):
+                return {k: plain(x) for k, x in v.items()}
+            if isinstance(v, (list, tuple)):
+                return [plain(x) for x in v]
+            if isinstance(v, (np.floating, float)):
+                return float(v) if math.isfinite(v) else None
+            if isinstance(v, np.integer):
+                return int(v)
+            if isinstance(v, np.bool_):
+                return bool(v)
+            return v
+
+        return plain({
+            "file": self.path, "kind": self.kind, "model": self.model, "n": self.n,
+            "groups": self.groups,
+            "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
+            "max_error_before": self.max_error_before, "max_error_after": self.max_error_after,
+            "cv_rmse_before": self.cv_rmse_before, "cv_rmse_after": self.cv_rmse_after,
+            "selected": self.selected, "dropped": self.dropped,
+            "candidates": self.candidates, "steps": self.steps,
+            "constants": self.constants, "residual_before": self.residual_before,
+            "residual_after": self.residual_after, "unexplained": self.unexplained,
+        })
+
+
+def _candidate_rows(rows: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "fit"} for r in rows]
+
+
+def analyse_residual(table: pd.DataFrame, column: str, covariates: list[str],
+                     group: str = "group") -> dict:
+    """Whiteness and covariate dependence of ``table[column]`` (rows in time order)."""
+    series = [g[column].to_numpy(float) for _, g in table.groupby(group, sort=False)]
+    r = table[column].to_numpy(float)
+    direction = table["direction"].to_numpy(float) if "direction" in table else None
+    deps = {}
+    for c in covariates:
+        d = None if c == "direction" else direction
+        deps[c] = covariate_dependence(r, table[c].to_numpy(float),
+                                       table[group].to_numpy(), d)
+    return {"rmse": float(np.sqrt(np.mean(r**2))), "max_abs": float(np.max(np.abs(r))),
+            "runs": runs_test(series), "ljung_box": ljung_box(series), "covariates": deps}
+
+
+def _unexplained(analysis: dict) -> list[str]:
+    out = [c for c, d in analysis["covariates"].items()
+           if d["p_value"] is not None and np.isfinite(d["p_value"])
+           and d["p_value"] < UNEXPLAINED_P]
+    if analysis["ljung_box"]["p_value"] < UNEXPLAINED_P or (
+        np.isfinite(analysis["runs"]["p_value"]) and analysis["runs"]["p_value"] < UNEXPLAINED_P
+    ):
+        out.append("time_order")
+    return out
+
+
+def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
+             n_folds: int = 5, progress=None) -> Diagnosis:
+    """Diagnose a bench or decay file (a path, a :class:`~pamid.BenchData` or a
+    :class:`~pamid.DecayData`).
+
+    Decay files are recognised by their columns (``trial`` with ``angle_rad`` or
+    ``angle_deg``) and diagnosed with the oscillator model; they need ``inertia_kg_m2``
+    for the friction torque in N·m.
+    """
+    from .._data._bench import BenchData, load_bench
+    from .._dynamics._decay_data import DecayData, load_decay
+
+    if isinstance(data, (str, os.PathLike)):
+        data = load_decay(data) if _is_decay_file(Path(data)) else load_bench(data)
+    if isinstance(data, DecayData):
+        from ._decay import diagnose_decays
+
+        return diagnose_decays(data, inertia_kg_m2, n_folds=n_folds, progress=progress)
+    if not isinstance(data, BenchData):
+        raise TypeError(f"diagnose takes a path, BenchData or DecayData, not {type(data)}")
+    return _diagnose_bench(data, model, n_folds, progress)
+
+
+def _is_decay_file(path: Path) -> bool:
+    from .._data._bench import _read_bytes
+
+    if path.suffix.lower() in (".parquet", ".pq"):
+        import pyarrow.parquet as pq
+
+        names = pq.read_schema(path).names
+    else:
+        head = _read_bytes(path, str(path))[:4096].decode("utf-8", "replace")
+        first = head.splitlines()[0] if head else ""
+        names = [c.strip().strip('"') for c in first.replace(";", ",").split(",")]
+    return "trial" in names and ("angle_rad" in names or "angle_deg" in names)
+
+
+def _diagnose_bench(bench, model: str, n_folds: int, progress) -> Diagnosis:
+    from .._fit._spec import get_model
+    from ._static import StaticProblem, intervals
+
+    spec = get_model(model, bench.frame)
+    problem = StaticProblem(bench, spec, n_folds=n_folds)
+    result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
+                            progress=progress)
+    base, final = result["baseline"], result["final"]
+    table = _long_table(problem, base, final)
+    covs = [*problem.covariates, "force_N"]
+    before = analyse_residual(table, "residual_before_N", covs)
+    after = analyse_residual(table, "residual_after_N", covs)
+    constants = [
+        {"muscle": m, **({"effects": e} if e else {"effects": {}}),
+         "base": dict(zip(spec.param_names, map(float, final.extra["params"][i][:spec.n_params]),
+                          strict=True))}
+        for i, (m, e) in enumerate(zip(bench.muscles, intervals(problem, final), strict=True))
+    ]
+    return Diagnosis(
+        path=str(bench.path), kind="bench", model=spec.name, n=int(np.sum(base.n)),
+        n_groups=len(bench.muscles), groups=list(bench.muscles),
+        rmse_before=base.rmse, rmse_after=final.rmse,
+        max_error_before=before["max_abs"], max_error_after=after["max_abs"],
+        cv_rmse_before=base.cv_rmse, cv_rmse_after=final.cv_rmse,
+        selected=result["selected"], dropped=result["dropped"],
+        candidates=_candidate_rows(result["steps"][0]["candidates"]),
+        steps=[{**{k: v for k, v in s.items() if k != "candidates"},
+                "candidates": _candidate_rows(s["candidates"])} for s in result["steps"]],
+        constants=constants, residual_before=before, residual_after=after,
+        unexplained=_unexplained(after), table=table,
+    )
+
+
+def _long_table(problem, base, final) -> pd.DataFrame:
+    parts = []
+    for i, f in enumerate(problem.frames):
+        n = len(f)
+        part = f.copy()
+        part["group"] = str(f["muscle"].iloc[0])
+        part["residual_before_N"] = base.extra["residual"][i][:n]
+        part["residual_after_N"] = final.extra["residual"][i][:n]
+        parts.append(part)
+    return pd.concat(parts, ignore_index=True)

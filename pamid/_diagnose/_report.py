@@ -1,0 +1,156 @@
+"""The diagnosis as a person reads it: a text report and residual plots before and after."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._io import save_figure_atomic
+
+
+def _p(p) -> str:
+    if p is None or not np.isfinite(p):
+        return "—"
+    return f"{p:.1e}" if p < 1e-3 else f"{p:.3f}"
+
+
+def _ci(c: dict) -> str:
+    lo, hi = c["ci95"]
+    return f"{c['value']:.4g} {c['unit']}  [{lo:.4g}, {hi:.4g}]"
+
+
+def format_report(d) -> str:
+    unit = "rad" if d.kind == "decay" else "N"
+    what = "trials" if d.kind == "decay" else "muscles"
+    lines = [f"pamid diagnose {d.path}",
+             f"model: {d.model}; {d.n_groups} {what}, {d.n} samples", ""]
+    b = d.residual_before
+    lines.append(f"1. Residual of the baseline: RMSE {d.rmse_before:.4g} {unit}, "
+                 f"max {d.max_error_before:.4g} {unit}; runs test p = {_p(b['runs']['p_value'])}, "
+                 f"Ljung–Box p = {_p(b['ljung_box']['p_value'])}")
+    lines.append("   dependence on each covariate (F test; share of the residual variance a "
+                 "smooth function of it explains):")
+    for c, dep in sorted(b["covariates"].items(), key=lambda kv: (kv[1]["p_value"] or 1.0)):
+        share = dep.get("explained_fraction", math.nan)
+        lines.append(f"     {c:<24} p = {_p(dep['p_value']):>8}   {100 * share:5.1f} %")
+    lines.append("")
+    lines.append("2. Candidate effects, each refitted against the baseline (ΔBIC < −10 and a "
+                 "lower cross-validated RMSE = significant):")
+    lines.append(f"     {'effect':<28} {'covariate':<20} {'ΔBIC':>10} {'CV RMSE':>10}  significant")
+    for r in d.candidates:
+        lines.append(f"     {r['effect']:<28} {r['covariate']:<20} {r['delta_bic']:>10.1f} "
+                     f"{r['cv_rmse']:>10.4g}  {'yes' if r['significant'] else 'no'}")
+    lines.append("")
+    lines.append("3. Forward selection:")
+    for s in d.steps:
+        added = s["added"]
+        if added is None:
+            lines.append(f"     from {s['selected_before'] or ['baseline']}: nothing significant "
+                         "left")
+        else:
+            best = next(r for r in s["candidates"] if r["effect"] == added)
+            lines.append(f"     + {added} (ΔBIC {best['delta_bic']:.1f}, CV RMSE "
+                         f"{s['cv_rmse_before']:.4g} → {best['cv_rmse']:.4g} {unit})")
+    lines.append(f"   selected: {', '.join(d.selected) if d.selected else 'none'}")
+    if d.selected:
+        lines.append("   constants with 95 % intervals:")
+        for g in d.constants[:10]:
+            group = g.get("muscle", g.get("trial", ""))
+            for name, consts in g["effects"].items():
+                for pname, c in consts.items():
+                    lines.append(f"     {group:<10} {name:<22} {pname:<12} {_ci(c)}")
+        if len(d.constants) > 10:
+            lines.append(f"     … and {len(d.constants) - 10} more (see --json)")
+    lines.append("")
+    a = d.residual_after
+    lines.append(f"4. Error before → after: RMSE {d.rmse_before:.4g} → {d.rmse_after:.4g} {unit}, "
+                 f"max {d.max_error_before:.4g} → {d.max_error_after:.4g} {unit}, CV RMSE "
+                 f"{d.cv_rmse_before:.4g} → {d.cv_rmse_after:.4g} {unit}")
+    lines.append(f"   final residual: runs test p = {_p(a['runs']['p_value'])}, Ljung–Box p = "
+                 f"{_p(a['ljung_box']['p_value'])}")
+    lines.append("   RMSE per covariate bin, before → after:")
+    for c in b["covariates"]:
+        bins_b, bins_a = b["covariates"][c]["bins"], a["covariates"][c]["bins"]
+        cells = [f"{_range(x)}: {x['rmse']:.3g}→{y['rmse']:.3g}"
+                 for x, y in zip(bins_b, bins_a, strict=False)]
+        lines.append(f"     {c:<20} " + "; ".join(cells))
+    lines.append("")
+    if d.unexplained:
+        lines.append("5. Unexplained: the final residual still depends on "
+                     + ", ".join(d.unexplained) + f" (p < {1e-3:g}); no library effect removes it.")
+    else:
+        lines.append("5. Unexplained: nothing — the final residual is white and depends on no "
+                     "covariate (p ≥ 0.001).")
+    return "\n".join(lines)
+
+
+def _range(b: dict) -> str:
+    if b["low"] == b["high"]:
+        return f"{b['low']:.4g}"
+    return f"{b['low']:.3g}–{b['high']:.3g}"
+
+
+def plot_residuals(d, path, max_panels: int = 9) -> None:
+    """Residual against each covariate, before (grey) and after (blue) the selected effects."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = d.table
+    unit = "rad" if d.kind == "decay" else "N"
+    covs = list(d.residual_before["covariates"])
+    covs.sort(key=lambda c: d.residual_before["covariates"][c]["p_value"] or 1.0)
+    covs = covs[:max_panels]
+    n = len(covs)
+    ncol = min(3, n)
+    nrow = math.ceil(n / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow), squeeze=False)
+    before, after = f"residual_before_{unit}", f"residual_after_{unit}"
+    for ax, c in zip(axes.ravel(), covs, strict=False):
+        x = table[c].to_numpy(float)
+        jitter = 0.0
+        if c == "direction":
+            jitter = 0.08 * (np.random.default_rng(0).random(len(x)) - 0.5)
+        ax.plot(x + jitter, table[before], ".", ms=2.5, color="0.6", label="before")
+        ax.plot(x - jitter, table[after], ".", ms=2.5, color="tab:blue", label="after")
+        ax.axhline(0.0, color="k", lw=0.6)
+        pb = d.residual_before["covariates"][c]["p_value"]
+        pa = d.residual_after["covariates"][c]["p_value"]
+        ax.set_title(f"{c}: p {_p(pb)} → {_p(pa)}", fontsize=9)
+        ax.set_xlabel(c)
+        ax.set_ylabel(f"residual [{unit}]")
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    axes.ravel()[0].legend(fontsize=8, markerscale=3)
+    sel = ", ".join(d.selected) if d.selected else "no effect"
+    fig.suptitle(f"Residual before and after ({sel}): RMSE {d.rmse_before:.3g} → "
+                 f"{d.rmse_after:.3g} {unit}", fontsize=11)
+    fig.tight_layout()
+    save_figure_atomic(fig, path, dpi=110)
+    plt.close(fig)
+
+
+def plot_time_order(d, path) -> None:
+    """The residual in time order, before and after: what whiteness tests look at."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    unit = "rad" if d.kind == "decay" else "N"
+    t = d.table
+    fig, axes = plt.subplots(2, 1, figsize=(10, 5), sharex=True, sharey=True)
+    idx = np.arange(len(t))
+    for ax, col, label in ((axes[0], f"residual_before_{unit}", "baseline"),
+                           (axes[1], f"residual_after_{unit}", "with " + (
+                               ", ".join(d.selected) or "no effect"))):
+        ax.plot(idx, t[col], lw=0.6, color="tab:blue")
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.set_ylabel(f"residual [{unit}]")
+        ax.set_title(label, fontsize=10)
+    axes[1].set_xlabel("sample, in time order (groups one after another)")
+    fig.tight_layout()
+    save_figure_atomic(fig, path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,160 @@
+"""Tests of a residual: is it white, and does it depend on a covariate?
+
+All functions take NumPy arrays; a residual is grouped by muscle (or trial) and ordered in
+time within each group.
+
+* Runs test (Wald and Wolfowitz, 1940): the number of runs of equal sign in the
+  time-ordered residual against its mean and variance for independent signs; few runs mean
+  a slowly varying residual.
+* Ljung–Box (1978): Q = n(n+2)·Σ_k r_k²/(n−k) over the first ``lags`` autocorrelations,
+  χ² with ``lags`` degrees of freedom under whiteness; summed over groups (independent
+  groups add their Q and degrees of freedom).
+* Covariate dependence: the residual regressed on Legendre polynomials P1…P3 of the
+  covariate scaled to [−1, 1], and on their products with the direction of motion when it
+  is known (so a loop that changes with the covariate shows too), against the mean alone
+  within each group; an F test. Binned statistics (mean, RMSE, count per quantile bin) go
+  into the report.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+__all__ = ["covariate_dependence", "ljung_box", "runs_test", "scaled", "legendre_basis"]
+
+
+def runs_test(residuals: list[np.ndarray]) -> dict:
+    """Wald–Wolfowitz runs test on the signs, summed over groups (zeros dropped)."""
+    runs = mean = var = 0.0
+    n_total = 0
+    for r in residuals:
+        s = np.sign(np.asarray(r, float))
+        s = s[s != 0]
+        n1, n2 = int(np.sum(s > 0)), int(np.sum(s < 0))
+        n = n1 + n2
+        if n1 == 0 or n2 == 0:
+            continue
+        runs += 1 + int(np.sum(s[1:] != s[:-1]))
+        mean += 2.0 * n1 * n2 / n + 1.0
+        var += 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n**2 * (n - 1.0))
+        n_total += n
+    if var <= 0:
+        return {"runs": runs, "expected": mean, "z": math.nan, "p_value": math.nan}
+    z = (runs - mean) / math.sqrt(var)
+    return {"runs": int(runs), "expected": mean, "z": z,
+            "p_value": float(2.0 * stats.norm.sf(abs(z)))}
+
+
+def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
+    """Ljung–Box Q over the first ``lags`` autocorrelations, summed over groups."""
+    q, dof = 0.0, 0
+    for r in residuals:
+        r = np.asarray(r, float) - np.mean(r)
+        n = len(r)
+        h = min(lags, n - 2)
+        denom = float(r @ r)
+        if h < 1 or denom <= 0:
+            continue
+        acf = np.array([float(r[k:] @ r[:-k]) / denom for k in range(1, h + 1)])
+        q += n * (n + 2.0) * float(np.sum(acf**2 / (n - np.arange(1, h + 1))))
+        dof += h
+    p = float(stats.chi2.sf(q, dof)) if dof else math.nan
+    return {"q": q, "dof": dof, "lags": lags, "p_value": p}
+
+
+def scaled(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Map [lo, hi] onto [−1, 1] (a constant covariate maps to 0)."""
+    span = hi - lo
+    if not np.isfinite(span) or span <= 0:
+        return np.zeros_like(values, dtype=float)
+    return 2.0 * (np.asarray(values, float) - lo) / span - 1.0
+
+
+def legendre_basis(z, degree: int):
+    """Legendre polynomials P1…P_degree of z (array module agnostic: NumPy or jax.numpy)."""
+    cols = []
+    p_prev, p = 1.0, z
+    for k in range(1, degree + 1):
+        cols.append(p)
+        p_prev, p = p, ((2 * k + 1) * z * p - k * p_prev) / (k + 1)
+    return cols
+
+
+def _group_means_design(groups: np.ndarray) -> np.ndarray:
+    ids = np.unique(groups)
+    return (groups[:, None] == ids[None, :]).astype(float)
+
+
+def covariate_dependence(
+    residual: np.ndarray,
+    covariate: np.ndarray,
+    groups: np.ndarray,
+    direction: np.ndarray | None = None,
+    *,
+    degree: int = 3,
+    n_bins: int = 5,
+) -> dict:
+    """F test of the residual's dependence on a covariate, with per-bin statistics.
+
+    ``groups`` gives each sample's muscle; each muscle has its own mean in both the null and
+    the alternative. With ``direction``, the alternative also has P_k(z)·direction, k = 0…3
+    (P0·direction is the direction's own effect, which the ``direction`` covariate tests,
+    so it is left out for every other covariate unless ``covariate`` is the direction).
+    """
+    r = np.asarray(residual, float)
+    x = np.asarray(covariate, float)
+    ok = np.isfinite(r) & np.isfinite(x)
+    r, x, groups = r[ok], x[ok], np.asarray(groups)[ok]
+    n_unique = len(np.unique(x))
+    base = _group_means_design(groups)
+    z = scaled(x, float(np.min(x)), float(np.max(x))) if len(x) else x
+    deg = min(degree, n_unique - 1)
+    cols = list(legendre_basis(z, deg)) if deg >= 1 else []
+    if direction is not None and deg >= 1:
+        d = np.asarray(direction, float)[ok]
+        cols += [c * d for c in legendre_basis(z, deg)]
+    bins = _bins(r, x, n_bins)
+    if not cols:
+        return {"f": math.nan, "dof": [0, 0], "p_value": math.nan, "bins": bins}
+    alt = np.column_stack([base, *cols])
+    rss0 = _rss(base, r)
+    rss1 = _rss(alt, r)
+    rank0 = np.linalg.matrix_rank(base)
+    rank1 = np.linalg.matrix_rank(alt)
+    df1, df2 = rank1 - rank0, len(r) - rank1
+    if df1 <= 0 or df2 <= 0 or rss1 <= 0:
+        return {"f": math.nan, "dof": [int(df1), int(df2)], "p_value": math.nan, "bins": bins}
+    f = ((rss0 - rss1) / df1) / (rss1 / df2)
+    return {"f": float(f), "dof": [int(df1), int(df2)],
+            "p_value": float(stats.f.sf(f, df1, df2)), "bins": bins,
+            "explained_fraction": float(1.0 - rss1 / rss0) if rss0 > 0 else 0.0}
+
+
+def _rss(design: np.ndarray, r: np.ndarray) -> float:
+    coef, *_ = np.linalg.lstsq(design, r, rcond=None)
+    e = r - design @ coef
+    return float(e @ e)
+
+
+def _bins(r: np.ndarray, x: np.ndarray, n_bins: int) -> list[dict]:
+    """Quantile bins of the covariate (distinct values when there are few)."""
+    values = np.unique(x)
+    if len(values) <= n_bins:
+        edges = [(v, v) for v in values]
+        masks = [x == v for v in values]
+    else:
+        q = np.quantile(x, np.linspace(0.0, 1.0, n_bins + 1))
+        edges = list(zip(q[:-1], q[1:], strict=True))
+        idx = np.clip(np.searchsorted(q, x, side="right") - 1, 0, n_bins - 1)
+        masks = [idx == i for i in range(n_bins)]
+    out = []
+    for (lo, hi), m in zip(edges, masks, strict=True):
+        if not np.any(m):
+            continue
+        out.append({"low": float(lo), "high": float(hi), "n": int(np.sum(m)),
+                    "mean": float(np.mean(r[m])), "rmse": float(np.sqrt(np.mean(r[m] ** 2))),
+                    "max_abs": float(np.max(np.abs(r[m])))})
+    return out
