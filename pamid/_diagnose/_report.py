@@ -52,6 +52,13 @@ def format_report(d) -> str:
             best = next(r for r in s["candidates"] if r["effect"] == added)
             lines.append(f"     + {added} (ΔBIC {best['delta_bic']:.1f}, CV RMSE "
                          f"{s['cv_rmse_before']:.4g} → {best['cv_rmse']:.4g} {unit})")
+            if s.get("alternatives"):
+                lines.append("       ambiguous: the data explain this almost as well with "
+                             + ", ".join(s["alternatives"]) + " (ΔBIC within 6)")
+    for r in d.dropped:
+        lines.append(f"     − {r['effect']} dropped in the backward check (given the others: "
+                     f"ΔBIC without it {r['delta_bic_without']:+.1f}, held-out curves p = "
+                     f"{_p(r['cv_p_value'])})")
     lines.append(f"   selected: {', '.join(d.selected) if d.selected else 'none'}")
     if d.selected:
         lines.append("   constants with 95 % intervals:")

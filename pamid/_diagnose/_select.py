@@ -13,9 +13,10 @@ the cross-validated RMSE on held-out curves. The best significant candidate (low
 added and the rest are refitted on top of it, until none is significant. Library effects,
 which have a physical reading, come first: a generic ``covariate:<column>`` effect is added
 only when no library effect is significant any more, so that it names what the library
-cannot model rather than a library effect in another form. A backward pass then drops any
-selected effect whose removal no longer raises the BIC by :data:`BIC_THRESHOLD` given the
-others.
+cannot model rather than a library effect in another form. A backward pass then drops,
+one at a time, any selected effect that, given the others, no longer lowers the BIC by
+:data:`BIC_THRESHOLD` or no longer predicts the held-out curves better curve by curve (a
+one-sided Wilcoxon signed-rank test on each curve's held-out error, p < :data:`CV_P`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,32 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 BIC_THRESHOLD = 10.0
+#: Significant candidates within this BIC of the one added are reported as alternatives
+#: the data cannot rule out (Kass and Raftery: a difference below 6 is not strong evidence).
+BIC_AMBIGUOUS = 6.0
+#: One-sided p-value of the paired test on held-out curves that a candidate must beat.
+CV_P = 0.05
+#: Fewest held-out units for the paired test; with fewer, the CV RMSE alone decides.
+CV_MIN_UNITS = 6
+
+
+def held_out_p_value(current: SetFit, candidate: SetFit) -> float:
+    """Wilcoxon signed-rank test (one-sided) that the candidate predicts held-out curves
+    better than the current model, curve by curve; NaN when there are too few curves.
+
+    The BIC counts every sample as independent; a leftover that is constant along a curve
+    (a sweep at its own temperature, say) makes any effect that varies from sweep to sweep
+    look significant in-sample. Held-out curves are the independent units here.
+    """
+    from scipy import stats
+
+    if current.cv_unit_sse is None or candidate.cv_unit_sse is None:
+        return math.nan
+    diff = np.asarray(current.cv_unit_sse) - np.asarray(candidate.cv_unit_sse)
+    diff = diff[np.isfinite(diff) & (diff != 0)]
+    if len(diff) < CV_MIN_UNITS:
+        return math.nan
+    return float(stats.wilcoxon(diff, alternative="greater").pvalue)
 
 
 @dataclasses.dataclass
@@ -52,6 +79,7 @@ class SetFit:
     cv_n: int
     converged: np.ndarray
     extra: dict = dataclasses.field(default_factory=dict)
+    cv_unit_sse: np.ndarray | None = None  # held-out squared error per held-out unit (curve)
 
     @property
     def bic(self) -> float:
@@ -89,19 +117,25 @@ def forward_select(
         rows = []
         for name, fit in zip(remaining, fits, strict=True):
             d_bic = fit.bic - current.bic
+            p_cv = held_out_p_value(current, fit)
             significant = (
                 bool(np.all(fit.converged))
                 and d_bic < -BIC_THRESHOLD
                 and fit.cv_rmse < current.cv_rmse
             )
             rows.append({"effect": name, "covariate": covariate_of.get(name, name),
-                         "delta_bic": d_bic, "cv_rmse": fit.cv_rmse, "rmse": fit.rmse,
-                         "significant": significant, "fit": fit})
+                         "delta_bic": d_bic, "cv_rmse": fit.cv_rmse, "cv_p_value": p_cv,
+                         "rmse": fit.rmse, "significant": significant, "fit": fit})
         rows.sort(key=lambda r: r["delta_bic"])
         choice = _choose(rows, covariate_of)
+        alternatives = [] if choice is None else [
+            r["effect"] for r in rows
+            if r is not choice and r["significant"]
+            and r["delta_bic"] - choice["delta_bic"] < BIC_AMBIGUOUS]
         steps.append({"selected_before": list(selected), "cv_rmse_before": current.cv_rmse,
                       "rmse_before": current.rmse, "candidates": rows,
-                      "added": choice["effect"] if choice else None})
+                      "added": choice["effect"] if choice else None,
+                      "alternatives": alternatives})
         if choice is None or len(selected) >= max_effects:
             break
         selected = (*selected, choice["effect"])
@@ -112,15 +146,19 @@ def forward_select(
         say(f"added {choice['effect']}; refitting {len(remaining)} candidates on top")
         fits = evaluate([(*selected, c) for c in remaining])
     dropped = []
-    while len(selected) > 1:
+    while selected:
         say(f"backward check of {', '.join(selected)}")
         reduced = [tuple(e for e in selected if e != r) for r in selected]
-        fits = evaluate(reduced)
+        fits = evaluate(reduced) if len(selected) > 1 else [baseline]
         support = [f.bic - current.bic for f in fits]
-        weakest = int(np.argmin(support))
-        if support[weakest] >= BIC_THRESHOLD:
+        p_cv = [held_out_p_value(f, current) for f in fits]
+        weak = [i for i in range(len(selected))
+                if support[i] < BIC_THRESHOLD or p_cv[i] >= CV_P]
+        if not weak:
             break
-        dropped.append({"effect": selected[weakest], "delta_bic_without": support[weakest]})
+        weakest = max(weak, key=lambda i: (np.nan_to_num(p_cv[i], nan=0.0), -support[i]))
+        dropped.append({"effect": selected[weakest], "delta_bic_without": support[weakest],
+                        "cv_p_value": p_cv[weakest]})
         selected, current = reduced[weakest], fits[weakest]
     return {"baseline": baseline, "final": current, "selected": list(selected),
             "steps": steps, "dropped": dropped}

@@ -47,6 +47,14 @@ from ._select import SetFit
 N_FOLDS = 5
 COVARIATE_DEGREE = 3
 MAX_ITER = 60
+#: Legendre degrees of a covariate that the base model already contains (at fixed values of
+#: the other inputs): Sárosi eq. 2.1 and Cullinan eq. 3 are affine in the pressure, and
+#: Cullinan eq. 3 is quadratic in the contraction y. Those terms would be unidentifiable.
+_IN_BASE_MODEL = {
+    ("sarosi", "pressure_kPa"): (1,),
+    ("cullinan", "pressure_kPa"): (1,),
+    ("cullinan", "contraction_mm"): (1, 2),
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,6 +167,11 @@ class StaticProblem:
             for k, fk in enumerate(ft):
                 self.features[i, k, : len(fk)] = fk
             self.fold[i, : len(fo)] = fo
+        curve = np.asarray(self.data.curve)
+        self.n_curves = int(curve.max()) + 1
+        self.curve_used = np.zeros((m, self.n_curves), bool)
+        for i in range(m):
+            self.curve_used[i, np.unique(curve[i][curve[i] >= 0])] = True
         theta, ok, _ = solve(spec, self.data)
         self.theta0 = theta
         self.baseline_converged = ok
@@ -199,9 +212,11 @@ class StaticProblem:
         for c in self.covariates:
             if c == "direction":
                 continue
-            degree = min(COVARIATE_DEGREE, rows[c].nunique() - 1)
-            add(f"covariate:{c}", c, tuple(f"b{k}" for k in range(1, degree + 1)),
-                ("N",) * degree)
+            top = min(COVARIATE_DEGREE, rows[c].nunique() - 1)
+            degrees = [k for k in range(1, top + 1)
+                       if k not in _IN_BASE_MODEL.get((self.spec.name, c), ())]
+            if degrees:
+                add(f"covariate:{c}", c, tuple(f"b{k}" for k in degrees), ("N",) * len(degrees))
         effects.append(Effect("compliance", "force_N", ("c",), (f"{unit_x}/N",), ()))
         self._ranges = {c: (float(rows[c].min()), float(rows[c].max()))
                         for c in self.covariates}
@@ -233,7 +248,8 @@ class StaticProblem:
             elif e.name.startswith("covariate:"):
                 lo, hi = self._ranges[e.covariate]
                 z = scaled(col(e.covariate), lo, hi)
-                cols += legendre_basis(z, len(e.param_names))
+                basis = legendre_basis(z, COVARIATE_DEGREE)
+                cols += [basis[int(name[1:]) - 1] for name in e.param_names]
         return np.column_stack(cols) if cols else np.zeros((len(f), 0))
 
     def effect(self, name: str) -> Effect:
@@ -285,18 +301,24 @@ class StaticProblem:
             jnp.asarray(self.data.y[lanes_muscle]), jnp.asarray(w_train), jnp.asarray(w_test),
             jnp.asarray(feats), jnp.asarray(colmask[lanes_set]), jnp.asarray(comp[lanes_set]),
         )
-        params, sse, sse_test, resid, jtj_inv, ok = (np.asarray(a) for a in out)
+        params, sse, sse_test, resid, jtj_inv, ok, rank = (np.asarray(a) for a in out)
         results = []
         for i, s in enumerate(sets):
             full = (lanes_set == i) & (lanes_fold == 0)
             cv = (lanes_set == i) & (lanes_fold > 0)
             n_used = np.sum(self.data.w > 0, axis=1)
-            n_par = k + len(slots[i]) + int(comp[i])
+            unit_sse = np.zeros((m, self.n_curves))
+            lane_idx = np.flatnonzero(cv)
+            np.add.at(unit_sse, (lanes_muscle[lane_idx][:, None], np.maximum(
+                self.data.curve[lanes_muscle[lane_idx]], 0)),
+                w_test[lane_idx] * resid[lane_idx] ** 2)
             results.append(SetFit(
-                effects=tuple(s), sse=sse[full], n=n_used, k=np.full(m, n_par),
+                effects=tuple(s), sse=sse[full], n=n_used, k=rank[full],
+                cv_unit_sse=unit_sse[self.curve_used],
                 cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test[cv] > 0)),
                 converged=ok[full] & self.baseline_converged,
                 extra={"params": params[full], "jtj_inv": jtj_inv[full],
+                       "full_rank": rank[full] == k + len(slots[i]) + int(comp[i]),
                        "residual": resid[full], "slots": slots[i], "compliance": comp[i] > 0},
             ))
         return results
@@ -387,10 +409,15 @@ def _lane(spec, theta0, x, y, w, w_test, feats, colmask, comp):
     r, jac = normal(params)
     a = jac.T @ jac + eye_off
     jtj_inv = jnp.linalg.inv(a) * mask[:, None] * mask[None, :]
+    # Numerical rank of the column-scaled Jacobian: constants the data cannot tell apart
+    # count once in the BIC.
+    norms = jnp.sqrt(jnp.sum(jac**2, axis=0))
+    sv = jnp.linalg.svd(jac / jnp.where(norms > 0, norms, 1.0), compute_uv=False)
+    rank = jnp.sum(sv > sv[0] * 1e-9)
     resid_all = y - pred(params)
     sse_test = jnp.sum(w_test * resid_all**2)
     ok = jnp.all(jnp.isfinite(params)) & (lam < 1e12)
-    return params, sse, sse_test, resid_all, jtj_inv, ok
+    return params, sse, sse_test, resid_all, jtj_inv, ok, rank
 
 
 def _fit_lanes_impl(spec, theta0, x, y, w, w_test, feats, colmask, comp):
@@ -412,6 +439,8 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
         s2 = float(fit.sse[i]) / dof if dof > 0 else math.nan
         t = float(stats.t.ppf(0.5 + level / 2, dof)) if dof > 0 else math.nan
         se = np.sqrt(np.maximum(np.diag(cov_un[i]) * s2, 0.0))
+        if not fit.extra["full_rank"][i]:
+            se = np.full_like(se, np.nan)  # some constants are not identifiable: no interval
         effects = {}
         slot = 0
         for name in fit.effects:
