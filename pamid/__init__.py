@@ -2,7 +2,9 @@
 
 The public API is flat; the modules behind it are private and grouped by concept:
 ``_models`` (force laws), ``_data`` (bench files and the virtual bench), ``_fit`` (batched
-least squares and intervals). float64 is switched on at import, because fitting needs it.
+least squares and intervals), ``_sim`` and ``_dynamics`` (simulators, decays), ``_sampling``
+(MCMC), ``_diagnose`` (closing the loop), ``_control`` (positioning control). float64 is
+switched on at import, because fitting needs it.
 """
 
 import importlib.metadata
@@ -11,6 +13,28 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from ._control._positioning import PositioningRig as PositioningRig
+from ._control._positioning import PositioningRun as PositioningRun
+from ._control._positioning import linear_rig as sarosi_linear_rig
+from ._control._positioning import positioning_metrics as positioning_metrics
+from ._control._positioning import rotary_rig as sarosi_rotary_rig
+from ._control._positioning import sarosi_from_fit_json as sarosi_from_fit_json
+from ._control._positioning import simulate_positioning as simulate_positioning
+from ._control._positioning import single_muscle_rig as sarosi_single_muscle_rig
+from ._control._positioning import wald_draws as wald_draws
+from ._control._sliding_mode import SlidingModeController as SlidingModeController
+from ._control._sliding_mode import plain_switching as plain_switching
+from ._control._sliding_mode import sliding_mode_voltage as sliding_mode_voltage
+from ._control._sliding_mode import sliding_surface as sliding_surface
+from ._control._thermal import TABLE_3_2 as TABLE_3_2
+from ._control._thermal import MuscleThermal as MuscleThermal
+from ._control._thermal import fit_table_3_2 as fit_table_3_2
+from ._control._thermal import sarosi_at_temperature as sarosi_at_temperature
+from ._control._thermal import steady_state_temperature_C as steady_state_temperature_C
+from ._control._thermal import temperature_after_C as temperature_after_C
+from ._control._valve import ProportionalValve as ProportionalValve
+from ._control._valve import orifice_mass_flow_kg_s as orifice_mass_flow_kg_s
+from ._control._valve import valve_mass_flows_kg_s as valve_mass_flows_kg_s
 from ._data._bench import BenchData as BenchData
 from ._data._bench import CensoredRowsWarning as CensoredRowsWarning
 from ._data._bench import load_bench as load_bench
@@ -18,17 +42,17 @@ from ._data._virtual_bench import SarosiProtocol as SarosiProtocol
 from ._data._virtual_bench import simulate_sarosi_bench as simulate_sarosi_bench
 from ._data._virtual_decay import DecayProtocol as DecayProtocol
 from ._data._virtual_decay import simulate_decays as simulate_decays
-from ._data._virtual_joint import DeflectionProtocol as DeflectionProtocol
-from ._data._virtual_joint import JointSweepProtocol as JointSweepProtocol
-from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
-from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
-from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
 from ._data._virtual_effects import InjectedCompliance as InjectedCompliance
 from ._data._virtual_effects import InjectedCovariate as InjectedCovariate
 from ._data._virtual_effects import InjectedDrift as InjectedDrift
 from ._data._virtual_effects import InjectedHysteresis as InjectedHysteresis
 from ._data._virtual_effects import InjectedTemperature as InjectedTemperature
 from ._data._virtual_effects import InjectedViscousDamping as InjectedViscousDamping
+from ._data._virtual_joint import DeflectionProtocol as DeflectionProtocol
+from ._data._virtual_joint import JointSweepProtocol as JointSweepProtocol
+from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
+from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
+from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
 from ._diagnose._api import Diagnosis as Diagnosis
 from ._diagnose._api import diagnose as diagnose
 from ._dynamics._decay import DecayReport as DecayReport

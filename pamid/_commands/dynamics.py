@@ -59,6 +59,10 @@ def register(subparsers) -> None:
     lm.add_argument("--out", help="folder for lifting_mass.png and lifting_mass.json")
     lm.set_defaults(func=cmd_lifting_mass)
 
+    from .positioning import add_positioning_parser
+
+    add_positioning_parser(systems)
+
     dmp = subparsers.add_parser(
         "damping",
         help="damping and stiffness from free decays (Cullinan section VI, eq. 8–11)",
