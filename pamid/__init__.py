@@ -55,6 +55,11 @@ from ._data._virtual_joint import simulate_deflection_test as simulate_deflectio
 from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
 from ._diagnose._api import Diagnosis as Diagnosis
 from ._diagnose._api import diagnose as diagnose
+from ._dynamics._coulomb import DECAY_EFFECTS as DECAY_EFFECTS
+from ._dynamics._coulomb import DecayModelFit as DecayModelFit
+from ._dynamics._coulomb import DecayTrialModelFit as DecayTrialModelFit
+from ._dynamics._coulomb import coulomb_response as coulomb_response
+from ._dynamics._coulomb import fit_decay_models as fit_decay_models
 from ._dynamics._decay import DecayReport as DecayReport
 from ._dynamics._decay import DecrementEstimate as DecrementEstimate
 from ._dynamics._decay import Extrema as Extrema

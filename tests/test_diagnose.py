@@ -181,3 +181,45 @@ def test_cli_bad_input_names_file_column_row(tmp_path, capsys):
     assert main(["diagnose", str(path)]) == 2
     err = capsys.readouterr().err
     assert "bad.csv" in err and "contraction_pct" in err and "row 2" in err
+
+
+# -- decay files: the oscillator model ---------------------------------------------------------
+
+J_DECAY = 0.05  # kg·m²
+DECAY_NOISE = 0.0005  # rad, before the 12-bit encoder
+
+
+def _decays(tmp_path, seed, coulomb_Nm=0.0, name="decay.csv", n_trials=3):
+    osc = pamid.DampedOscillator.from_modal(0.05, 2.0, J_DECAY)
+    proto = pamid.DecayProtocol(n_trials=n_trials, deflections_deg=(3.0, 5.0, 8.0),
+                                noise_sd_rad=DECAY_NOISE)
+    frame = pamid.simulate_decays(jax.random.key(seed), osc, proto, coulomb_Nm=coulomb_Nm)
+    path = tmp_path / name
+    frame.to_csv(path, index=False)
+    return path
+
+
+def test_decay_coulomb_friction_found_and_sized(tmp_path):
+    d = diagnose(_decays(tmp_path, 2, coulomb_Nm=0.005), inertia_kg_m2=J_DECAY)
+    assert d.kind == "decay"
+    assert d.selected == ["coulomb_friction"]
+    # noise level: sensor noise and the encoder's rounding, √(σ² + q²/12)
+    q = 2 * math.pi / 4096
+    level = math.sqrt(DECAY_NOISE**2 + q**2 / 12)
+    assert d.rmse_after < 1.05 * level < d.rmse_before
+    for g in d.constants:
+        lo, hi = g["effects"]["coulomb_friction"]["coulomb_Nm"]["ci95"]
+        assert lo < 0.005 < hi
+
+
+def test_decay_control_selects_nothing(tmp_path):
+    hits = [bool(diagnose(_decays(tmp_path, s, name=f"d{s}.csv"),
+                          inertia_kg_m2=J_DECAY).selected) for s in range(5)]
+    assert not any(hits)
+
+
+def test_decay_needs_inertia(tmp_path, capsys):
+    from pamid._cli import main
+
+    assert main(["diagnose", str(_decays(tmp_path, 1))]) == 2
+    assert "--inertia" in capsys.readouterr().err

@@ -76,6 +76,9 @@ def format_report(d) -> str:
                  f"{d.cv_rmse_before:.4g} → {d.cv_rmse_after:.4g} {unit}")
     lines.append(f"   final residual: runs test p = {_p(a['runs']['p_value'])}, Ljung–Box p = "
                  f"{_p(a['ljung_box']['p_value'])}")
+    if d.kind == "decay":
+        lines.append("   (the encoder's step holds the residual's sign near each turning point, "
+                     "so the runs test is not used for decays; Ljung–Box is)")
     lines.append("   RMSE per covariate bin, before → after:")
     for c in b["covariates"]:
         bins_b, bins_a = b["covariates"][c]["bins"], a["covariates"][c]["bins"]

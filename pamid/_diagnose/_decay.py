@@ -1,0 +1,109 @@
+"""Diagnosis of free decays: the linear oscillator and what its residual says it lacks.
+
+Baseline: J·β̈ + c·β̇ + k·(β − β_eq) = 0 fitted trial by trial (Cullinan section VI,
+eq. 8–11; :func:`pamid._dynamics._decay.fit_decay_trajectories`). Its damping is already
+viscous, so the candidates for decays are the effects it cannot produce
+(:mod:`pamid._dynamics._coulomb`):
+
+* ``coulomb_friction``: a constant friction torque T_c·sign(β̇) (the sliding seal, the
+  cable over the pulley), which makes the amplitude fall linearly instead of geometrically;
+* ``drift``: an equilibrium that moves with time, β_eq + r·t (a slow leak).
+
+All sets are fitted, and cross-validated on held-out blocks of each record, in one batched
+call; selection is the same as for bench files (:mod:`pamid._diagnose._select`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ._select import SetFit, forward_select
+
+COVARIATE_OF = {"coulomb_friction": "velocity_rad_s", "drift": "elapsed_s"}
+
+
+def _set_fit(model_fit) -> SetFit:
+    trials = model_fit.trials
+    n = np.array([f.n for f in trials])
+    cv_sse = np.array([f.cv_rmse_rad**2 * f.n for f in trials])
+    return SetFit(
+        effects=tuple(model_fit.effects), sse=np.array([f.sse for f in trials]), n=n,
+        k=np.array([f.n_params for f in trials]), cv_sse=float(np.sum(cv_sse)),
+        cv_n=int(np.sum(n)), converged=np.array([f.converged for f in trials]),
+        cv_unit_sse=cv_sse, extra={"model": model_fit},
+    )
+
+
+def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
+    from .._dynamics._coulomb import fit_decay_models
+    from .._dynamics._decay import analyze_decays
+    from ._api import Diagnosis, _candidate_rows, _unexplained, analyse_residual
+
+    if inertia_kg_m2 is None or not inertia_kg_m2 > 0:
+        raise ValueError(f"{data.path}: a decay file needs the arm's moment of inertia: "
+                         "give --inertia J in kg·m² (inertia_kg_m2=)")
+    report = analyze_decays(data, inertia_kg_m2)
+    times, angles = zip(*(data.arrays(t) for t in data.trials), strict=True)
+
+    def evaluate(sets):
+        fits = fit_decay_models(list(times), list(angles), report.extrema, report.decrement,
+                                inertia_kg_m2, sets, n_folds=n_folds, baseline=report.fits)
+        return [_set_fit(f) for f in fits]
+
+    result = forward_select(["coulomb_friction", "drift"], evaluate, COVARIATE_OF,
+                            progress=progress)
+    base, final = result["baseline"], result["final"]
+    table = _long_table(data, base, final)
+    covs = [c for c in ("angle_rad", "velocity_rad_s", "elapsed_s", "direction",
+                        "temperature_C", "pressure1_kPa", "pressure2_kPa")
+            if c in table and table[c].nunique() > 1]
+    quantum = max(float(e.quantum_rad) for e in report.extrema)
+    before = analyse_residual(table, "residual_before_rad", covs)
+    after = analyse_residual(table, "residual_after_rad", covs)
+    constants = []
+    for trial, f in zip(data.trials, final.extra["model"].trials, strict=True):
+        effects = {}
+        for name in final.effects:
+            key = "coulomb_Nm" if name == "coulomb_friction" else "drift_rad_s"
+            unit = "N·m" if name == "coulomb_friction" else "rad/s"
+            lo, hi = f.params_ci95.get(key, (np.nan, np.nan))
+            effects[name] = {key: {"value": float(f.params[key]), "ci95": [lo, hi],
+                                   "unit": unit}}
+        constants.append({"trial": trial, "effects": effects,
+                          "base": {k: float(f.params[k]) for k in
+                                   ("zeta", "omega_n_rad_s", "equilibrium_rad")
+                                   if k in f.params}})
+    return Diagnosis(
+        path=str(data.path), kind="decay", model="linear oscillator (Cullinan eq. 8–11)",
+        n=int(np.sum(base.n)), n_groups=len(data.trials), groups=list(data.trials),
+        rmse_before=base.rmse, rmse_after=final.rmse,
+        max_error_before=before["max_abs"], max_error_after=after["max_abs"],
+        cv_rmse_before=base.cv_rmse, cv_rmse_after=final.cv_rmse,
+        selected=result["selected"], dropped=result["dropped"],
+        candidates=_candidate_rows(result["steps"][0]["candidates"]),
+        steps=[{**{k: v for k, v in s.items() if k != "candidates"},
+                "candidates": _candidate_rows(s["candidates"])} for s in result["steps"]],
+        constants=constants, residual_before=before, residual_after=after,
+        unexplained=_unexplained(after, runs_test_applies=quantum == 0.0), table=table,
+    )
+
+
+def _long_table(data, base: SetFit, final: SetFit) -> pd.DataFrame:
+    parts = []
+    for trial, fb, fa in zip(data.trials, base.extra["model"].trials,
+                             final.extra["model"].trials, strict=True):
+        rows = data.for_trial(trial)
+        t = rows["time_s"].to_numpy(float)
+        start = int(np.argmin(np.abs(t - fb.time_s[0])))  # the fit's window, sample exact
+        part = rows.iloc[start:start + len(fb.time_s)].reset_index(drop=True)
+        part["group"] = trial
+        part["residual_before_rad"] = fb.residual_rad
+        part["residual_after_rad"] = fa.residual_rad
+        tt = part["time_s"].to_numpy(float)
+        angle = part["angle_rad"].to_numpy(float)
+        part["elapsed_s"] = tt - tt[0]
+        part["velocity_rad_s"] = np.gradient(angle, tt) if len(tt) > 1 else 0.0
+        part["direction"] = np.where(part["velocity_rad_s"] >= 0, 1.0, -1.0)
+        parts.append(part)
+    return pd.concat(parts, ignore_index=True)
