@@ -3,8 +3,9 @@
 
 The rigs, valve, controller, encoder and thermal model are those of ``pamid._control``
 (see the docstrings there for every assumption); one set of constants serves all the runs
-below — nothing is tuned per experiment. Reproduced, with plots and a printed comparison to
-the text:
+below; the valve and the controller are the same for every rig, and only the rotary rig's
+pulley radius and pre-pressure are calibrated (to Fig. 3-13). Reproduced, with plots and a
+printed comparison to the text:
 
     Fig. 3-7     linear rig (two DMSP-20-200N), 0 → 15 mm, gradient 0.35
     chattering   the same move with plain switching (no precision zone)
@@ -14,6 +15,11 @@ the text:
     Fig. 3-9/10  single muscle, 0 → 40 mm at −10, 0, 10, 20, 30 and 39 °C (one batched call),
                  and the same with the elastic temperature coefficient γ scanned
     Fig. 3-13    rotary rig (two DMSP-10-250N), 0 → 5.004°, gradient 0.3
+    sensitivity  which constants move the arrival time and the overshoot: each constant
+                 varied alone, the single-muscle rig at all six temperatures and the rotary
+                 rig (with the perturbations that test its calibration), one batched call
+                 per rig
+    comparison   every number of the text against the simulation, with their ratio
     draws        the distribution of settling time, overshoot and error over draws of the
                  Table 3-1 constants from their Wald intervals (independent normals; the
                  JSON of a fit carries no correlations), all in one batched call
@@ -29,6 +35,7 @@ import math
 import time
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import matplotlib
@@ -49,6 +56,7 @@ from pamid._control._positioning import (  # noqa: E402
 from pamid._control._sliding_mode import (  # noqa: E402
     LINEAR_GRADIENT,
     ROTARY_GRADIENT,
+    SLOW_BAND_COUNTS,
     SlidingModeController,
     plain_switching,
 )
@@ -58,8 +66,14 @@ from pamid._control._thermal import (  # noqa: E402
     steady_state_temperature_C,
     temperature_after_C,
 )
+from pamid._control._valve import (  # noqa: E402
+    CONDUCTANCE_CALIBRATION,
+    ProportionalValve,
+    sonic_conductance_from_nominal_flow,
+)
 from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
 from pamid._models._sarosi import TABLE_3_1  # noqa: E402
+from pamid._models._volume import PamVolume  # noqa: E402
 
 NAME = "positioning"
 LINEAR_RES, ROTARY_RES = 0.01, 0.036
@@ -67,6 +81,7 @@ SEQUENCE_MM = (0.0, 5.0, 10.0, 20.0, 40.0, 20.0, 10.0, 5.0, 0.0)
 HOLD_S = 6.0
 TEMPERATURES_C = (-10.0, 0.0, 10.0, 20.0, 30.0, 39.0)
 GAMMAS = (0.0, -0.003, -0.006, -0.01)
+#: Every number of Sárosi Section 3.3 the simulation can be held against.
 TEXT = {
     "temperature": {
         "-10": {"time_s": 1.4, "overshoot_mm": 0.02, "error_mm": 0.01},
@@ -74,6 +89,7 @@ TEXT = {
     },
     "rotary": {"time_s": 0.8, "overshoot_deg": 0.072, "error_deg": 0.036},
     "linear": {"error_mm": 0.01},
+    "hysteresis": {"error_mm": 0.01},
 }
 
 
@@ -181,6 +197,7 @@ def linear_15mm(out: Path) -> dict:
         zoom=(1.0, 4.0, 15.0, LINEAR_RES),
         second=plain_run,
     )
+    m["approach_counts_per_sample"] = _approach_counts(run, LINEAR_RES)
     return {
         "zone": _row(m, 0),
         "plain_switching": _row(m, 1),
@@ -318,6 +335,7 @@ def temperature_positioning(out: Path) -> dict:
     rig = single_muscle_rig(temperature_C=temps[None, :], temperature_coefficient_per_K=gammas)
     run = simulate_positioning(rig, ctrl, 40.0, duration_s=4.0)
     m = _metrics(run, 0.0, LINEAR_RES)
+    m["approach_counts_per_sample"] = _approach_counts(run, LINEAR_RES)
     t = np.asarray(run.time_s)
     fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.2))
     ax = axes[0]
@@ -339,9 +357,17 @@ def temperature_positioning(out: Path) -> dict:
             ms=4,
             label=f"γ = {g:g} /K" + (" (default)" if g == 0 else ""),
         )
+    ax.plot(
+        TEMPERATURES_C,
+        m["reach_time_s"][0],
+        "^--",
+        color="C0",
+        ms=5,
+        label="γ = 0: reached (first within one count)",
+    )
     ax.plot([-10, 39], [1.4, 1.2], "s", color="k", ms=7, label="Sárosi: 1.4 s, 1.2 s")
     ax.set_xlabel("muscle temperature [°C]")
-    ax.set_ylabel("positioning time (2 % band) [s]")
+    ax.set_ylabel("positioning time [s] (solid: 2 % band)")
     ax.set_title("Positioning time against temperature")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
@@ -361,14 +387,205 @@ def rotary(out: Path) -> dict:
     ctrl = SlidingModeController.for_encoder(ROTARY_RES, ROTARY_GRADIENT)
     run = simulate_positioning(rotary_rig(), ctrl, 5.004, duration_s=4.0)
     m = _metrics(run, 0.0, ROTARY_RES)
+    m["approach_counts_per_sample"] = _approach_counts(run, ROTARY_RES)
     _plot_run(
         run,
-        "Rotary rig, 0 → 5.004° (Sárosi Fig. 3-13): two DMSP-10-250N, λ = 0.3",
+        "Rotary rig, 0 → 5.004° (Fig. 3-13): 2 × DMSP-10-250N, λ = 0.3, r = 40 mm, 400 kPa",
         "angle [°]",
         out / "fig_3_13_rotary.png",
         zoom=(0.0, 4.0, 5.004, ROTARY_RES),
     )
     return _row(m)
+
+
+def _stack(trees):
+    return jax.tree_util.tree_map(lambda *a: jnp.stack(a), *trees)
+
+
+def _approach_counts(run, res):
+    """Mean encoder step (counts per 10 ms sample) over the ten samples before the first
+    arrival within one count: how fast the slow valve level drives the load at the end."""
+    q = np.asarray(run.reading) / res
+    r = float(run.target[-1]) / res
+    inside = np.abs(q - r) <= 1.0 + 1e-9
+    k = np.where(inside.any(-1), inside.argmax(-1), q.shape[-1] - 1)
+    k = np.maximum(k, 11)
+    steps = np.abs(np.diff(q, axis=-1))
+    idx = k[..., None] - np.arange(1, 11)
+    return np.take_along_axis(steps, idx, axis=-1).mean(-1)
+
+
+#: One constant varied at a time: (label, rig overrides, controller counts, valve overrides).
+_C_CAT = sonic_conductance_from_nominal_flow()
+SENSITIVITY_SINGLE = (
+    ("defaults", {}, {}, {}),
+    ("ζ 0.15 (0.3)", {"zeta": 0.15}, {}, {}),
+    ("ζ 0.6", {"zeta": 0.6}, {}, {}),
+    ("ζ 1.0", {"zeta": 1.0}, {}, {}),
+    ("Dahl δ 0.02 mm (0.05)", {"hysteresis_mm": 0.02}, {}, {}),
+    ("Dahl δ 0.1 mm", {"hysteresis_mm": 0.1}, {}, {}),
+    ("loop h 1.5 N/bar (3)", {"hysteresis_N_per_bar": 1.5}, {}, {}),
+    ("loop h 6 N/bar", {"hysteresis_N_per_bar": 6.0}, {}, {}),
+    ("moving mass 25 kg (20)", {"moving_mass_kg": 25.0}, {}, {}),
+    ("dead volume 40 cm³ (10)", {"dead_volume_mm3": 40_000.0}, {}, {}),
+    ("slow band 100 counts (200)", {}, {"slow_counts": 100.0}, {}),
+    ("slow band 400 counts", {}, {"slow_counts": 400.0}, {}),
+    ("valve overlap 0.27 V (0.3)", {}, {}, {"overlap_V": 0.27}),
+    ("valve overlap 0.33 V", {}, {}, {"overlap_V": 0.33}),
+    ("valve C × 0.8", {}, {}, {"conductance_m3_per_s_Pa": 0.8 * CONDUCTANCE_CALIBRATION * _C_CAT}),
+    (
+        "valve C × 1.25",
+        {},
+        {},
+        {"conductance_m3_per_s_Pa": 1.25 * CONDUCTANCE_CALIBRATION * _C_CAT},
+    ),
+)
+SENSITIVITY_ROTARY = (
+    ("as calibrated (r 40 mm, 400 kPa)", {}, {}, {}),
+    (
+        "first guess (r 30, 300 kPa, h 3)",
+        {"radius_mm": 30.0, "pre_pressure_kPa": 300.0, "hysteresis_N_per_bar": 3.0},
+        {},
+        {},
+    ),
+    ("r 30 mm", {"radius_mm": 30.0}, {}, {}),
+    ("r 35 mm", {"radius_mm": 35.0}, {}, {}),
+    ("r 45 mm", {"radius_mm": 45.0}, {}, {}),
+    ("r 38 mm (−5 %)", {"radius_mm": 38.0}, {}, {}),
+    ("r 42 mm (+5 %)", {"radius_mm": 42.0}, {}, {}),
+    ("J 0.003 kg·m² (0.005)", {"inertia_kg_m2": 0.003}, {}, {}),
+    ("J 0.008 kg·m²", {"inertia_kg_m2": 0.008}, {}, {}),
+    ("pre-pressure 300 kPa", {"pre_pressure_kPa": 300.0}, {}, {}),
+    ("pre-pressure 380 kPa", {"pre_pressure_kPa": 380.0}, {}, {}),
+    ("pre-pressure 420 kPa", {"pre_pressure_kPa": 420.0}, {}, {}),
+    ("loop h 3 N/bar (DMSP-20)", {"hysteresis_N_per_bar": 3.0}, {}, {}),
+    ("ζ 0.15 (0.3)", {"zeta": 0.15}, {}, {}),
+    ("ζ 0.6", {"zeta": 0.6}, {}, {}),
+    ("slow band 50 counts (200)", {}, {"slow_counts": 50.0}, {}),
+    ("valve overlap 0.27 V (0.3)", {}, {}, {"overlap_V": 0.27}),
+    ("valve overlap 0.33 V", {}, {}, {"overlap_V": 0.33}),
+)
+
+
+def _variant(make, rig_kw, ctrl_kw, valve_kw, res, gradient, **fixed):
+    rig_kw = dict(rig_kw)
+    dead = rig_kw.pop("dead_volume_mm3", None)
+    rig = make(valve=ProportionalValve(**valve_kw), **fixed, **rig_kw)
+    if dead is not None:
+        v = rig.volume
+        rig = eqx.tree_at(
+            lambda r: r.volume,
+            rig,
+            PamVolume(v.active_length_mm, v.rest_diameter_mm, v.rest_braid_angle_rad, dead),
+        )
+    c = {"precision_counts": 1.5, "slow_counts": SLOW_BAND_COUNTS, **ctrl_kw}
+    return rig, SlidingModeController.for_encoder(res, gradient, **c)
+
+
+def sensitivity(out: Path) -> dict:
+    """Each constant varied alone (one batched call per rig). The sampled relay makes single
+    runs jumpy (a count more or less changes the next valve level), so the single-muscle rig
+    is summarised over its six temperatures (median, and the range of the overshoot)."""
+    pairs = [
+        _variant(single_muscle_rig, rk, ck, vk, LINEAR_RES, LINEAR_GRADIENT, temperature_C=t)
+        for _, rk, ck, vk in SENSITIVITY_SINGLE
+        for t in TEMPERATURES_C
+    ]
+    run = simulate_positioning(
+        _stack([p[0] for p in pairs]), _stack([p[1] for p in pairs]), 40.0, duration_s=4.0
+    )
+    shape = (len(SENSITIVITY_SINGLE), len(TEMPERATURES_C))
+    m = {k: v.reshape(shape) for k, v in _metrics(run, 0.0, LINEAR_RES).items()}
+    speed = _approach_counts(run, LINEAR_RES).reshape(shape)
+    single = []
+    for i, (label, *_) in enumerate(SENSITIVITY_SINGLE):
+        ov = m["overshoot_reading"][i] / LINEAR_RES
+        single.append(
+            {
+                "variant": label,
+                "reach_s_median": _f(np.nanmedian(m["reach_time_s"][i])),
+                "reach_s_minus10_39": [_f(m["reach_time_s"][i][0]), _f(m["reach_time_s"][i][-1])],
+                "settling_2pct_s_median": _f(np.nanmedian(m["settling_time_2pct_s"][i])),
+                "settling_1count_s_median": _f(np.nanmedian(m["settling_time_s"][i])),
+                "not_settled": int(np.sum(~np.isfinite(m["settling_time_s"][i]))),
+                "overshoot_counts_median": _f(np.median(np.round(ov))),
+                "overshoot_counts_range": [int(np.round(ov.min())), int(np.round(ov.max()))],
+                "approach_counts_per_sample_median": _f(np.median(speed[i])),
+            }
+        )
+    pairs = [
+        _variant(rotary_rig, rk, ck, vk, ROTARY_RES, ROTARY_GRADIENT)
+        for _, rk, ck, vk in SENSITIVITY_ROTARY
+    ]
+    run = simulate_positioning(
+        _stack([p[0] for p in pairs]), _stack([p[1] for p in pairs]), 5.004, duration_s=4.0
+    )
+    m = _metrics(run, 0.0, ROTARY_RES)
+    speed = _approach_counts(run, ROTARY_RES)
+    rot = [
+        {
+            "variant": label,
+            "reach_s": _f(m["reach_time_s"][i]),
+            "settling_2pct_s": _f(m["settling_time_2pct_s"][i]),
+            "settling_1count_s": _f(m["settling_time_s"][i]),
+            "overshoot_counts": int(np.round(m["overshoot_reading"][i] / ROTARY_RES)),
+            "final_error_counts": int(np.round(m["steady_state_error_reading"][i] / ROTARY_RES)),
+            "approach_counts_per_sample": _f(speed[i]),
+        }
+        for i, (label, *_) in enumerate(SENSITIVITY_ROTARY)
+    ]
+    fig, axes = plt.subplots(2, 2, figsize=(12.0, 9.0), gridspec_kw={"height_ratios": [1, 1.1]})
+    for row, (rows, tkey, okey, title, text_t, text_o) in enumerate(
+        (
+            (
+                single,
+                "reach_s_median",
+                "overshoot_counts_median",
+                "single DMSP-20-400N, 20 kg, 0 → 40 mm (median over −10 … 39 °C)",
+                (1.2, 1.4),
+                2,
+            ),
+            (rot, "reach_s", "overshoot_counts", "rotary rig, 0 → 5.004°", (0.8, 0.8), 2),
+        )
+    ):
+        labels = [r["variant"] for r in rows]
+        y = np.arange(len(rows))[::-1]
+        ax = axes[row, 0]
+        ax.barh(y, [r[tkey] or 0.0 for r in rows], color="C0", alpha=0.8)
+        if text_t[0] == text_t[1]:
+            ax.axvline(text_t[0], color="k", lw=1.2, label=f"text ({text_t[0]:g} s)")
+        else:
+            ax.axvspan(*text_t, color="k", alpha=0.15, lw=0, label="text (1.2 s at 39 °C … 1.4 s)")
+        ax.legend(fontsize=7, loc="upper right")
+        ax.set_yticks(y, labels, fontsize=7)
+        ax.set_xlabel("reached (first within one count) [s]")
+        ax.set_title(title, fontsize=9)
+        ax.grid(alpha=0.3, axis="x")
+        ax = axes[row, 1]
+        ax.barh(y, [r[okey] for r in rows], color="C3", alpha=0.8)
+        if row == 0:
+            lo = [r[okey] - r["overshoot_counts_range"][0] for r in rows]
+            hi = [r["overshoot_counts_range"][1] - r[okey] for r in rows]
+            ax.errorbar(
+                [r[okey] for r in rows],
+                y,
+                xerr=[lo, hi],
+                fmt="none",
+                ecolor="k",
+                elinewidth=0.8,
+                capsize=2,
+                label="range over temperatures",
+            )
+        ax.axvline(text_o, color="k", lw=1.2, label="text (2 counts)")
+        ax.set_yticks(y, [])
+        ax.set_xlabel("overshoot on the encoder [counts]")
+        ax.legend(fontsize=7, loc="lower right")
+        ax.grid(alpha=0.3, axis="x")
+    fig.suptitle("Sensitivity: one constant varied at a time (default in brackets)", fontsize=10)
+    fig.tight_layout()
+    save_figure_atomic(fig, out / "sensitivity.png", dpi=110)
+    plt.close(fig)
+    return {"single_muscle_40mm": single, "rotary_5p004deg": rot}
 
 
 def draws_study(out: Path, n: int, seed: int) -> dict:
@@ -437,6 +654,63 @@ def draws_study(out: Path, n: int, seed: int) -> dict:
     }
 
 
+def comparison(res: dict) -> list[dict]:
+    """Every number of the text next to the simulation's, with the ratio sim/text."""
+    rows = []
+
+    def add(what, text, sim, unit, fmt=".2f"):
+        ok = sim is not None and text
+        rows.append(
+            {
+                "what": what,
+                "text": f"{text:g} {unit}",
+                "sim": "—" if sim is None else f"{format(sim, fmt)} {unit}",
+                "text_value": text,
+                "sim_value": sim,
+                "ratio": _f(sim / text) if ok else None,
+            }
+        )
+
+    z = res["linear_15mm"]["zone"]
+    add(
+        "Fig. 3-7 linear 15 mm: error (encoder, end) ≤", 0.01, z["steady_state_error_reading"], "mm"
+    )
+    steps = res["hysteresis"]["steps"]
+    worst = max(s["max_reading_error_last_second_mm"] for s in steps)
+    add("Figs. 3-11/12 hysteresis: max error, last second of holds ≤", 0.01, worst, "mm")
+    rows_t = res["temperature"]["by_gamma_per_K"]["0"]
+    for temp, tx in (("-10", TEXT["temperature"]["-10"]), ("39", TEXT["temperature"]["39"])):
+        r = rows_t[temp]
+        lab = f"Fig. {'3-9' if temp == '-10' else '3-10'} {temp} °C 40 mm"
+        add(f"{lab}: time, reached (1 count)", tx["time_s"], r["reach_time_s"], "s")
+        add(f"{lab}: time, 2 % band", tx["time_s"], r["settling_time_2pct_s"], "s")
+        add(f"{lab}: time, settled (1 count)", tx["time_s"], r["settling_time_s"], "s")
+        if "overshoot_mm" in tx:
+            add(f"{lab}: overshoot (encoder)", tx["overshoot_mm"], r["overshoot_reading"], "mm")
+        add(f"{lab}: error (encoder, end) ≤", tx["error_mm"], r["steady_state_error_reading"], "mm")
+    a, b = rows_t["-10"]["reach_time_s"], rows_t["39"]["reach_time_s"]
+    add(
+        "Figs. 3-9/10: time at −10 °C / time at 39 °C (reached)",
+        round(1.4 / 1.2, 3),
+        None if a is None or b is None else a / b,
+        "",
+        ".3f",
+    )
+    ro, tx = res["rotary"], TEXT["rotary"]
+    add("Fig. 3-13 rotary 5.004°: time, reached (1 count)", tx["time_s"], ro["reach_time_s"], "s")
+    add("Fig. 3-13: time, 2 % band", tx["time_s"], ro["settling_time_2pct_s"], "s")
+    add("Fig. 3-13: time, settled (1 count)", tx["time_s"], ro["settling_time_s"], "s")
+    add("Fig. 3-13: overshoot (encoder)", tx["overshoot_deg"], ro["overshoot_reading"], "°", ".3f")
+    add(
+        "Fig. 3-13: error (encoder, end) ≤",
+        tx["error_deg"],
+        ro["steady_state_error_reading"],
+        "°",
+        ".3f",
+    )
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "out" / NAME))
@@ -452,7 +726,8 @@ def main(argv=None) -> int:
     print("Sárosi's positioning (Sections 2.4, 3.3) simulated by pamid — model vs text\n")
     print("Fig. 3-7, linear rig 0 → 15 mm (text: steady-state error within 0.01 mm):")
     print(
-        f"  precision zone: settling (1 count) {_fmt(z['settling_time_s'])} s, 2 % "
+        f"  precision zone: reached (1 count) {_fmt(z['reach_time_s'])} s, "
+        f"settled (1 count) {_fmt(z['settling_time_s'])} s, 2 % "
         f"{_fmt(z['settling_time_2pct_s'])} s, overshoot {_fmt(z['overshoot'], '.4f')} mm, "
         f"error {_fmt(z['steady_state_error'], '.4f')} mm true / "
         f"{_fmt(z['steady_state_error_reading'], '.2f')} mm encoder"
@@ -498,10 +773,13 @@ def main(argv=None) -> int:
         print(f"  γ = {g} /K" + (" (default)" if float(g) == 0 else ""))
         for temp, r in rows.items():
             print(
-                f"    {temp:>4} °C: time (2 %) {_fmt(r['settling_time_2pct_s'])} s, settled to "
-                f"1 count {_fmt(r['settling_time_s'])} s, overshoot "
-                f"{_fmt(r['overshoot'], '.3f')} mm, encoder error at the end "
-                f"{_fmt(r['steady_state_error_reading'], '.2f')} mm"
+                f"    {temp:>4} °C: reached (1 count) {_fmt(r['reach_time_s'])} s, 2 % "
+                f"{_fmt(r['settling_time_2pct_s'])} s, settled (1 count) "
+                f"{_fmt(r['settling_time_s'])} s; overshoot "
+                f"{_fmt(r['overshoot_reading'] / LINEAR_RES, '.0f')} counts on the encoder "
+                f"({_fmt(r['overshoot'], '.3f')} mm true); error at the end "
+                f"{_fmt(r['steady_state_error_reading'], '.2f')} mm encoder; slow approach "
+                f"{_fmt(r['approach_counts_per_sample'], '.1f')} counts/sample"
             )
 
     ro = res["rotary"] = rotary(out)
@@ -509,11 +787,55 @@ def main(argv=None) -> int:
         "\nFig. 3-13, rotary rig 0 → 5.004° (text: ≈ 0.8 s, overshoot 0.072°, error within 0.036°):"
     )
     print(
-        f"  settling (1 count) {_fmt(ro['settling_time_s'])} s, 2 % "
-        f"{_fmt(ro['settling_time_2pct_s'])} s, overshoot {_fmt(ro['overshoot'], '.3f')}°, "
-        f"error {_fmt(ro['steady_state_error'], '.3f')}° true / "
-        f"{_fmt(ro['steady_state_error_reading'], '.3f')}° encoder"
+        f"  reached (1 count) {_fmt(ro['reach_time_s'])} s, settled (1 count) "
+        f"{_fmt(ro['settling_time_s'])} s, 2 % {_fmt(ro['settling_time_2pct_s'])} s; "
+        f"overshoot {_fmt(ro['overshoot_reading'], '.3f')}° encoder "
+        f"({_fmt(ro['overshoot'], '.3f')}° true); error "
+        f"{_fmt(ro['steady_state_error'], '.3f')}° true / "
+        f"{_fmt(ro['steady_state_error_reading'], '.3f')}° encoder; slow approach "
+        f"{_fmt(ro['approach_counts_per_sample'], '.1f')} counts/sample"
     )
+
+    se = res["sensitivity"] = sensitivity(out)
+    print(
+        "\nSensitivity, one constant at a time (defaults in brackets). Single muscle, 0 → 40 mm,"
+        " medians over −10 … 39 °C:"
+    )
+    print(
+        f"  {'variant':28s} {'reached':>8s} {'−10/39 °C':>11s} {'2 %':>6s} {'1 count':>8s} "
+        f"{'overshoot [counts]':>19s} {'approach':>9s}"
+    )
+    for r in se["single_muscle_40mm"]:
+        lo, hi = r["overshoot_counts_range"]
+        a, b = r["reach_s_minus10_39"]
+        print(
+            f"  {r['variant']:28s} {_fmt(r['reach_s_median'], '.2f'):>7s}s "
+            f"{_fmt(a, '.2f')}/{_fmt(b, '.2f'):>5s} "
+            f"{_fmt(r['settling_2pct_s_median'], '.2f'):>5s}s "
+            f"{_fmt(r['settling_1count_s_median'], '.2f'):>7s}s "
+            f"{_fmt(r['overshoot_counts_median'], '.0f'):>9s} ({lo}–{hi})"
+            + " " * 4
+            + f"{_fmt(r['approach_counts_per_sample_median'], '.1f'):>6s}"
+            + (f"  not settled in {r['not_settled']}/6" if r["not_settled"] else "")
+        )
+    print("Rotary rig, 0 → 5.004°:")
+    for r in se["rotary_5p004deg"]:
+        print(
+            f"  {r['variant']:34s} reached {_fmt(r['reach_s'], '.2f')} s, 2 % "
+            f"{_fmt(r['settling_2pct_s'], '.2f')} s, 1 count {_fmt(r['settling_1count_s'], '.2f')} "
+            f"s, overshoot {r['overshoot_counts']} counts, final error "
+            f"{r['final_error_counts']} count(s), approach "
+            f"{_fmt(r['approach_counts_per_sample'], '.1f')} counts/sample"
+        )
+
+    rows = res["comparison"] = comparison(res)
+    print("\nText vs simulation (time: reached = first within one count; ratio = sim/text):")
+    for r in rows:
+        ratio = "" if r["ratio"] is None else f"  ratio {r['ratio']:.2f}"
+        bound = ""
+        if r["what"].endswith("≤") and r["sim_value"] is not None:
+            bound = "  (within)" if r["sim_value"] <= r["text_value"] + 1e-9 else "  (OUTSIDE)"
+        print(f"  {r['what']:58s} text {r['text']:<10s} sim {r['sim']:<11s}{ratio}{bound}")
 
     if args.draws > 0:
         dr = res["draws"] = draws_study(out, args.draws, args.seed)

@@ -15,9 +15,11 @@ import pytest
 import pamid
 from pamid._commands.positioning import add_positioning_parser
 from pamid._control._positioning import (
+    DMSP10_HYSTERESIS_N_PER_BAR,
     PositioningRun,
     linear_rig,
     positioning_metrics,
+    rotary_rig,
     sarosi_from_fit_json,
     simulate_positioning,
     single_muscle_rig,
@@ -223,6 +225,42 @@ def test_positioning_metrics_by_hand():
     assert float(m["steady_state_error"]) == pytest.approx(0.002)
     assert float(m["steady_state_error_reading"]) == pytest.approx(0.0, abs=1e-12)
     assert int(m["valve_switches_settled"]) == 0
+    assert float(m["reach_time_s"]) == pytest.approx(0.03)  # first inside = last outside + 1
+
+
+def test_reach_time_before_settling_by_hand():
+    # within one count at sample 2, out again at sample 3 (overshoot 3 counts), back at 4
+    t = 0.01 * jnp.arange(6)
+    pos = jnp.array([[0.0, 0.6, 0.992, 1.03, 1.0, 1.0], [0.0, 0.2, 0.4, 0.6, 0.8, 0.9]])
+    reading = jnp.round(pos / 0.01) * 0.01
+    v = jnp.full((2, 6), 5.0)
+    run = PositioningRun(t, jnp.ones(6), pos, reading, v, v, v, v, v, v)
+    m = positioning_metrics(run, 0.0, 0.01)
+    np.testing.assert_allclose(m["reach_time_s"][0], 0.02)
+    np.testing.assert_allclose(m["settling_time_s"][0], 0.04)
+    np.testing.assert_allclose(m["overshoot_reading"][0], 0.03, atol=1e-12)
+    assert np.isnan(m["reach_time_s"][1]) and np.isnan(m["settling_time_s"][1])
+
+
+def test_dmsp10_loop_scaled_by_force_per_bar():
+    # h = 3 N/bar × (a1 + a5 of the Martens fit)/(a1 + a5 of Table 3-1)
+    #   = 3 × (−3.0515 + 91.4042)/(−4.3557 + 302.2011) = 3 × 88.3526/297.8453 = 0.88992
+    assert DMSP10_HYSTERESIS_N_PER_BAR == pytest.approx(0.88992, abs=1e-5)
+    assert float(rotary_rig().hysteresis_N_per_bar) == DMSP10_HYSTERESIS_N_PER_BAR
+
+
+def test_rotary_rig_as_fig_3_13():
+    # calibrated to Sárosi Fig. 3-13: 5.004° reached at about 0.8 s, overshoot 0.072° (two
+    # counts), then held within one count (0.036°); the model must keep doing so
+    run = simulate_positioning(
+        rotary_rig(), SlidingModeController.for_encoder(0.036, 0.3), 5.004, duration_s=DURATION_S
+    )
+    m = {k: float(v) for k, v in positioning_metrics(run, 0.0, 0.036).items()}
+    assert 0.6 <= m["reach_time_s"] <= 1.0
+    assert m["overshoot_reading"] <= 2 * 0.036 + 1e-9
+    assert m["settling_time_s"] <= 1.2
+    assert np.max(np.abs(5.004 - np.asarray(run.reading)[-100:])) <= 0.036 + 1e-9
+    assert float(rotary_rig().output_per_mm) == pytest.approx(180.0 / (math.pi * 40.0))
 
 
 # --------------------------------------------------------------------------------------

@@ -160,9 +160,11 @@ def cmd_positioning(args) -> int:
         "target_mm": target,
         "temperature_C": temperature,
         "duration_s": duration,
+        "reach_time_s": _num(m["reach_time_s"], 6),
         "settling_time_s": _num(m["settling_time_s"], 6),
         "settling_time_2pct_s": _num(m["settling_time_2pct_s"], 6),
         "overshoot_mm": m["overshoot"],
+        "overshoot_reading_mm": m["overshoot_reading"],
         "steady_state_error_mm": m["steady_state_error"],
         "steady_state_error_reading_mm": m["steady_state_error_reading"],
         "valve_switches_after_settling": int(m["valve_switches_settled"]),
@@ -232,9 +234,11 @@ def _text(d: dict) -> str:
     lines = [
         f"Positioning to {d['target_mm']:g} mm — {d['rig']}",
         f"  controller: {d['controller']}; constants: {d['constants']}",
+        f"  reached (1 count)   {_fmt(d['reach_time_s'], 's')} (first within one count)",
         f"  settling time       {settle}",
         f"  2 % settling time   {_fmt(d['settling_time_2pct_s'], 's')}",
-        f"  overshoot           {d['overshoot_mm']:.4f} mm",
+        f"  overshoot           {d['overshoot_mm']:.4f} mm true, "
+        f"{d['overshoot_reading_mm']:.2f} mm on the encoder",
         f"  steady-state error  {d['steady_state_error_mm']:.4f} mm true, "
         f"{d['steady_state_error_reading_mm']:.2f} mm on the encoder",
         f"  valve switches after settling: {d['valve_switches_after_settling']}",

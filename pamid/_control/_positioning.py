@@ -7,8 +7,8 @@ Source: Sárosi, dissertation summary, Sections 2.4 and 3.3. Three rigs:
   linear encoder 0.01 mm, gradient 0.35 (:func:`linear_rig`);
 * single muscle (Fig. 2-6, Fig. 3-9 to 3-12): one DMSP-20-400N lifting 20 kg, port A only,
   the temperature and hysteresis experiments (:func:`single_muscle_rig`);
-* rotary (Section 2.4.3, Fig. 3-13): two DMSP-10-250N on a pulley, rotary encoder 0.036°,
-  gradient 0.3 (:func:`rotary_rig`).
+* rotary (Section 2.4.3, Fig. 3-13): two DMSP-10-250N on a pulley, rotary encoder 0.036°
+  (10 000 counts per turn), gradient 0.3 (:func:`rotary_rig`).
 
 Plant (continuous, integrated by RK4 at a fixed step inside each 10 ms sample). State: the
 travel x (m; muscle A shortens by x, muscle B lengthens by x), its rate v, the air masses
@@ -45,11 +45,25 @@ sets the valve voltage, held until the next sample.
 Constants the summary does not give (assumptions, chosen once for all experiments; the
 valve's effective conductance and overlap are calibrated, see ``_valve``): the
 muscles' rest braid angle 25°, their inner diameter as the gas column's, 10 cm³ (DMSP-20)
-and 5 cm³ (DMSP-10) of tube and port volume; the pre-pressure 300 kPa and pre-contraction
-10 % of the pairs; the carriage 2 kg; the rotary rig's pulley (r = 30 mm) and inertia
+and 5 cm³ (DMSP-10) of tube and port volume; the pre-contraction 10 % of the pairs; the
+linear pair's pre-pressure 300 kPa and carriage 2 kg; the rotary rig's inertia
 (0.005 kg·m², a light arm); the DMSP-20-200N's constants equal to Table 3-1's (same
 diameter; eq. 2.1 is written in κ in %, which removes the length); the DMSP-10-250N's
-constants are pamid's fit to Martens & Boblan's force map (``experiments/martens_dmsp10.py``).
+constants are pamid's fit to Martens & Boblan's force map (``experiments/martens_dmsp10.py``)
+and its hysteresis loop is the DMSP-20's scaled by the muscles' force per bar
+(:data:`DMSP10_HYSTERESIS_N_PER_BAR`).
+
+Calibrated (rig constants only; valve and controller are shared by all rigs): the rotary
+rig's pulley radius r = 40 mm and pre-pressure 400 kPa, to Fig. 3-13 (5.004° reached in
+about 0.8 s, overshoot 0.072° = 2 counts, error within one count). With the first guess
+(r = 30 mm, 300 kPa, the DMSP-20's loop) the rig overshot by 7 counts; the scan of
+``experiments/sarosi_positioning.py`` (r 35–45 mm, J 0.003–0.008 kg·m², 300/400 kPa, each
+also perturbed by ±5 % in r, ±10 % in J and ±20 kPa) finds 400 kPa the setting at which the
+overshoot stays at 0–2 counts under those perturbations (at 300 kPa it scatters over
+1–8 counts), and r = 40 mm the radius at which the arrival time is near 0.8 s. The single
+muscle's rig has no free geometry (20 kg, Fig. 2-6) and keeps its constants: no rig
+constant in the scan brings its overshoot from 4–7 counts down to the text's 2 (see the
+experiment's findings).
 """
 
 from __future__ import annotations
@@ -63,7 +77,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from .._models._energy import R_AIR_J_PER_KG_K
-from .._models._sarosi import Sarosi, sarosi_force, sarosi_stiffness, table_3_1
+from .._models._sarosi import TABLE_3_1, Sarosi, sarosi_force, sarosi_stiffness, table_3_1
 from .._models._volume import PamVolume, volume_mm3
 from .._sim._lifting_mass import DEFAULT_HYSTERESIS_N_PER_BAR, STANDARD_GRAVITY_M_PER_S2
 from .._sim._oscillator import batch_apply, rk4_scan
@@ -74,6 +88,7 @@ from ._valve import ProportionalValve, valve_mass_flows_kg_s
 
 __all__ = [
     "DMSP10_250_MARTENS",
+    "DMSP10_HYSTERESIS_N_PER_BAR",
     "PositioningRig",
     "PositioningRun",
     "initial_state",
@@ -98,11 +113,24 @@ DMSP10_250_MARTENS = (
     91.40416950787578,
     -201.02673811747857,
 )
+#: Hysteresis loop half height h of a DMSP-10 (N/bar): the DMSP-20's loop
+#: (:data:`DEFAULT_HYSTERESIS_N_PER_BAR`, measured on a DMSP-20-400N) scaled by the ratio of
+#: the two muscles' force per bar at rest, ∂F/∂p = a1 + a5 of eq. 2.1 at κ = 0 (88.4 N/bar
+#: for the Martens fit, 297.8 N/bar for Table 3-1): a braid friction in proportion to the
+#: force the braid carries (an assumption; no loop of a DMSP-10 is in pamid's data).
+DMSP10_HYSTERESIS_N_PER_BAR = (
+    DEFAULT_HYSTERESIS_N_PER_BAR
+    * (DMSP10_250_MARTENS[0] + DMSP10_250_MARTENS[4])
+    / (TABLE_3_1["a1"]["value"] + TABLE_3_1["a5"]["value"])
+)
 #: Elastic temperature coefficient γ of ``_thermal.sarosi_at_temperature`` (1/K). Calibrated
 #: to 0: the gas law alone (p = m·R·T/V at the muscle's temperature) gives 1.45 s at −10 °C
 #: and 1.14 s at 39 °C (2 % band, 0 → 40 mm) against Sárosi's 1.4 s and 1.2 s; the scan of
 #: ``experiments/sarosi_positioning.py`` (γ down to −0.01/K) fits no better within the
-#: ±0.1 s scatter that the sampled relay brings, so the extra constant is left at 0.
+#: ±0.1 s scatter that the sampled relay brings, so the extra constant is left at 0. Read as
+#: the first arrival within one count, the same runs take 1.71 s and 1.40 s (falling
+#: monotonically over −10, 0, 10, 20, 30, 39 °C; ratio −10 °C/39 °C 1.22 against the text's
+#: 1.17); γ < 0 makes both readings slower and the 39 °C end jumpier.
 ELASTIC_TEMPERATURE_COEFFICIENT = 0.0
 
 
@@ -218,17 +246,22 @@ def single_muscle_rig(muscle: Sarosi | None = None, **overrides) -> PositioningR
 def rotary_rig(
     muscle: Sarosi | None = None,
     *,
-    radius_mm: float = 30.0,
-    inertia_kg_m2: float = 0.005,
+    radius_mm: ArrayLike = 40.0,
+    inertia_kg_m2: ArrayLike = 0.005,
     **overrides,
 ) -> PositioningRig:
-    """Section 2.4.3: two DMSP-10-250N on a pulley, rotary encoder 0.036°, position in °."""
+    """Section 2.4.3: two DMSP-10-250N on a pulley, rotary encoder 0.036°, position in °.
+
+    ``radius_mm`` (40 mm) and the pre-pressure (400 kPa) are calibrated to Fig. 3-13, the
+    inertia (0.005 kg·m²) is assumed (see the module docstring); both may be arrays."""
+    radius_mm = jnp.asarray(radius_mm, float)
     kw = dict(
         antagonistic=True,
         pre_contraction_mm=25.0,
-        pre_pressure_kPa=300.0,
+        pre_pressure_kPa=400.0,
+        hysteresis_N_per_bar=DMSP10_HYSTERESIS_N_PER_BAR,
         moving_mass_kg=inertia_kg_m2 / (radius_mm / 1000.0) ** 2,
-        output_per_mm=180.0 / (math.pi * radius_mm),
+        output_per_mm=180.0 / (jnp.pi * radius_mm),
         resolution=0.036,
     )
     kw.update(overrides)
@@ -437,8 +470,12 @@ def simulate_positioning(
 def positioning_metrics(
     run: PositioningRun, position0: ArrayLike = 0.0, resolution: ArrayLike = 0.01
 ) -> dict:
-    """Settling time, overshoot and steady-state error of runs with one constant target.
+    """Arrival and settling times, overshoot and steady-state error of runs with one
+    constant target.
 
+    * ``reach_time_s``: the first sample time at which the encoder error is within one count
+      (|r − q| ≤ resolution); NaN if it never is. Sárosi's "the position was reached at
+      about 0.8 s" (Section 3.3.3) reads as this time.
     * ``settling_time_s``: the first sample time after which the encoder error stays within
       one count (|r − q| ≤ resolution) to the end of the run; NaN if it is outside at the
       end (not settled).
@@ -463,6 +500,8 @@ def positioning_metrics(
     last_out = jnp.max(jnp.where(outside, idx, -1), axis=-1)
     dt = run.time_s[1] - run.time_s[0]
     settled = last_out < n - 1
+    inside = ~outside
+    t_reach = jnp.where(jnp.any(inside, axis=-1), jnp.argmax(inside, axis=-1) * dt, jnp.nan)
     t_settle = jnp.where(settled, (last_out + 1) * dt, jnp.nan)
     out2 = jnp.abs(r - run.position) > 0.02 * jnp.abs(r - jnp.asarray(position0, float))[..., None]
     last_out2 = jnp.max(jnp.where(out2, idx, -1), axis=-1)
@@ -475,6 +514,7 @@ def positioning_metrics(
         axis=-1,
     )
     return {
+        "reach_time_s": t_reach,
         "settling_time_s": t_settle,
         "settling_time_2pct_s": jnp.where(last_out2 < n - 1, (last_out2 + 1) * dt, jnp.nan),
         "overshoot": jnp.maximum(jnp.max(direction * (run.position - r), axis=-1), 0.0),
