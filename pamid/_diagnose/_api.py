@@ -27,8 +27,14 @@ import pandas as pd
 from ._residual import covariate_dependence, ljung_box, runs_test
 from ._select import forward_select
 
-#: A covariate stays "unexplained" when the final residual depends on it with p below this.
+#: A covariate stays "unexplained" when the final residual depends on it with p below this
+#: and a smooth function of it explains at least UNEXPLAINED_SHARE of the residual variance
+#: (with many muscles, a structure far too small to matter is still "significant").
 UNEXPLAINED_P = 1e-3
+UNEXPLAINED_SHARE = 0.02
+#: ... and the time order is unexplained when the residual is not white (p below
+#: UNEXPLAINED_P) and its lag-1 autocorrelation is at least this large in magnitude.
+UNEXPLAINED_RHO1 = 0.1
 
 
 @dataclasses.dataclass
@@ -110,11 +116,14 @@ def _unexplained(analysis: dict, *, runs_test_applies: bool = True) -> list[str]
     point), so the runs test rejects even for a perfect model; Ljung–Box still applies."""
     out = [c for c, d in analysis["covariates"].items()
            if d["p_value"] is not None and np.isfinite(d["p_value"])
-           and d["p_value"] < UNEXPLAINED_P]
+           and d["p_value"] < UNEXPLAINED_P
+           and d.get("explained_fraction", 1.0) >= UNEXPLAINED_SHARE]
     runs_p = analysis["runs"]["p_value"]
-    if analysis["ljung_box"]["p_value"] < UNEXPLAINED_P or (
+    rho1 = analysis["ljung_box"]["lag1_autocorrelation"]
+    not_white = analysis["ljung_box"]["p_value"] < UNEXPLAINED_P or (
         runs_test_applies and np.isfinite(runs_p) and runs_p < UNEXPLAINED_P
-    ):
+    )
+    if not_white and abs(rho1) >= UNEXPLAINED_RHO1:
         out.append("time_order")
     return out
 

@@ -75,7 +75,8 @@ def format_report(d) -> str:
                  f"max {d.max_error_before:.4g} → {d.max_error_after:.4g} {unit}, CV RMSE "
                  f"{d.cv_rmse_before:.4g} → {d.cv_rmse_after:.4g} {unit}")
     lines.append(f"   final residual: runs test p = {_p(a['runs']['p_value'])}, Ljung–Box p = "
-                 f"{_p(a['ljung_box']['p_value'])}")
+                 f"{_p(a['ljung_box']['p_value'])}, lag-1 autocorrelation "
+                 f"{a['ljung_box']['lag1_autocorrelation']:+.3f}")
     if d.kind == "decay":
         lines.append("   (the encoder's step holds the residual's sign near each turning point, "
                      "so the runs test is not used for decays; Ljung–Box is)")
@@ -88,10 +89,13 @@ def format_report(d) -> str:
     lines.append("")
     if d.unexplained:
         lines.append("5. Unexplained: the final residual still depends on "
-                     + ", ".join(d.unexplained) + f" (p < {1e-3:g}); no library effect removes it.")
+                     + ", ".join(d.unexplained) + " (p < 0.001, and at least 2 % of its "
+                     "variance, or a lag-1 autocorrelation of at least 0.1 for the time "
+                     "order); no library effect removes it.")
     else:
-        lines.append("5. Unexplained: nothing — the final residual is white and depends on no "
-                     "covariate (p ≥ 0.001).")
+        lines.append("5. Unexplained: nothing material — no covariate explains 2 % of the "
+                     "final residual's variance at p < 0.001, and its time order shows no "
+                     "lag-1 autocorrelation of 0.1 or more at p < 0.001.")
     return "\n".join(lines)
 
 

@@ -8,7 +8,8 @@ time within each group.
   a slowly varying residual.
 * Ljung–Box (1978): Q = n(n+2)·Σ_k r_k²/(n−k) over the first ``lags`` autocorrelations,
   χ² with ``lags`` degrees of freedom under whiteness; summed over groups (independent
-  groups add their Q and degrees of freedom).
+  groups add their Q and degrees of freedom). The pooled lag-1 autocorrelation is reported
+  as the size of the effect.
 * Covariate dependence: the residual regressed on Legendre polynomials P1…P3 of the
   covariate scaled to [−1, 1], and on their products with the direction of motion when it
   is known (so a loop that changes with the covariate shows too), against the mean alone
@@ -62,7 +63,10 @@ def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
         q += n * (n + 2.0) * float(np.sum(acf**2 / (n - np.arange(1, h + 1))))
         dof += h
     p = float(stats.chi2.sf(q, dof)) if dof else math.nan
-    return {"q": q, "dof": dof, "lags": lags, "p_value": p}
+    num = sum(float((r - np.mean(r))[1:] @ (r - np.mean(r))[:-1]) for r in residuals if len(r) > 1)
+    den = sum(float((r - np.mean(r)) @ (r - np.mean(r))) for r in residuals)
+    rho1 = num / den if den > 0 else math.nan
+    return {"q": q, "dof": dof, "lags": lags, "p_value": p, "lag1_autocorrelation": rho1}
 
 
 def scaled(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -83,9 +87,15 @@ def legendre_basis(z, degree: int):
     return cols
 
 
-def _group_means_design(groups: np.ndarray) -> np.ndarray:
-    ids = np.unique(groups)
-    return (groups[:, None] == ids[None, :]).astype(float)
+def _demean(values: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Subtract each group's mean (the within transformation: the same fit as one dummy
+    column per group, without building them)."""
+    _, idx = np.unique(groups, return_inverse=True)
+    counts = np.bincount(idx)
+    if values.ndim == 1:
+        return values - (np.bincount(idx, values) / counts)[idx]
+    means = np.stack([np.bincount(idx, c) / counts for c in values.T], axis=1)
+    return values - means[idx]
 
 
 def covariate_dependence(
@@ -109,7 +119,7 @@ def covariate_dependence(
     ok = np.isfinite(r) & np.isfinite(x)
     r, x, groups = r[ok], x[ok], np.asarray(groups)[ok]
     n_unique = len(np.unique(x))
-    base = _group_means_design(groups)
+    n_groups = len(np.unique(groups))
     z = scaled(x, float(np.min(x)), float(np.max(x))) if len(x) else x
     deg = min(degree, n_unique - 1)
     cols = list(legendre_basis(z, deg)) if deg >= 1 else []
@@ -119,12 +129,12 @@ def covariate_dependence(
     bins = _bins(r, x, n_bins)
     if not cols:
         return {"f": math.nan, "dof": [0, 0], "p_value": math.nan, "bins": bins}
-    alt = np.column_stack([base, *cols])
-    rss0 = _rss(base, r)
-    rss1 = _rss(alt, r)
-    rank0 = np.linalg.matrix_rank(base)
-    rank1 = np.linalg.matrix_rank(alt)
-    df1, df2 = rank1 - rank0, len(r) - rank1
+    r0 = _demean(r, groups)
+    alt = _demean(np.column_stack(cols), groups)
+    rss0 = float(r0 @ r0)
+    rss1 = _rss(alt, r0)
+    df1 = int(np.linalg.matrix_rank(alt))
+    df2 = len(r) - n_groups - df1
     if df1 <= 0 or df2 <= 0 or rss1 <= 0:
         return {"f": math.nan, "dof": [int(df1), int(df2)], "p_value": math.nan, "bins": bins}
     f = ((rss0 - rss1) / df1) / (rss1 / df2)

@@ -295,13 +295,29 @@ class StaticProblem:
         feats = np.take_along_axis(
             self.features[lanes_muscle, lanes_fold], cols[lanes_set][:, None, :], axis=2
         ) * colmask[lanes_set][:, None, :]
-        out = _fit_lanes(
-            self.spec, jnp.asarray(self.theta0[lanes_muscle]),
-            tuple(jnp.asarray(xi[lanes_muscle]) for xi in self.data.x),
-            jnp.asarray(self.data.y[lanes_muscle]), jnp.asarray(w_train), jnp.asarray(w_test),
-            jnp.asarray(feats), jnp.asarray(colmask[lanes_set]), jnp.asarray(comp[lanes_set]),
-        )
-        params, sse, sse_test, resid, jtj_inv, ok, rank = (np.asarray(a) for a in out)
+        # Lanes with and without the compliance are solved by two compiled functions: the
+        # implicit force law costs four Newton steps that the other lanes do not need.
+        lane_comp = comp[lanes_set] > 0
+        parts = {}
+        for flag in (False, True):
+            sel = np.flatnonzero(lane_comp == flag)
+            if len(sel) == 0:
+                continue
+            parts[flag] = (sel, _fit_lanes(
+                self.spec, flag, jnp.asarray(self.theta0[lanes_muscle[sel]]),
+                tuple(jnp.asarray(xi[lanes_muscle[sel]]) for xi in self.data.x),
+                jnp.asarray(self.data.y[lanes_muscle[sel]]), jnp.asarray(w_train[sel]),
+                jnp.asarray(w_test[sel]), jnp.asarray(feats[sel]),
+                jnp.asarray(colmask[lanes_set[sel]]),
+            ))
+        outs = []
+        for j in range(7):
+            first = next(iter(parts.values()))[1][j]
+            arr = np.zeros((len(lanes_set), *np.shape(first)[1:]), dtype=np.asarray(first).dtype)
+            for sel, out in parts.values():
+                arr[sel] = np.asarray(out[j])
+            outs.append(arr)
+        params, sse, sse_test, resid, jtj_inv, ok, rank = outs
         results = []
         for i, s in enumerate(sets):
             full = (lanes_set == i) & (lanes_fold == 0)
@@ -345,8 +361,10 @@ def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
     return blocks % n_folds
 
 
-def _predict(spec, theta, c, x, gain_on):
+def _predict(spec, theta, c, x, with_compliance: bool):
     """F_model with the rig's compliance: F = F_model(p, x + c·F), by Newton from c = 0."""
+    if not with_compliance:
+        return spec.predict(theta, x)
     x0, x1, *rest = x
 
     def model(f):
@@ -356,29 +374,42 @@ def _predict(spec, theta, c, x, gain_on):
     for _ in range(4):
         g, dg = jax.jvp(model, (f,), (jnp.ones_like(f),))
         f = f - (f - g) / (1.0 - dg)
-    return jnp.where(gain_on > 0, f, spec.predict(theta, x))
+    return f
 
 
-def _fit_lanes(spec, *arrays):
-    return map_lanes(lambda *a: _fit_lanes_jit(spec, *a), *arrays)
+def _fit_lanes(spec, with_compliance, *arrays):
+    """Solve the lanes; their count is padded to a power of two (repeating the last lane),
+    so that the steps of a forward selection reuse a few compiled shapes."""
+    n = jax.tree.leaves(arrays)[0].shape[0]
+    size = max(64, 1 << (n - 1).bit_length())
+    idx = np.minimum(np.arange(size), n - 1)
+    padded = jax.tree.map(lambda a: a[idx], arrays)
+    out = map_lanes(lambda *a: _fit_lanes_jit(spec, with_compliance, *a), *padded)
+    return jax.tree.map(lambda a: a[:n], out)
 
 
-def _lane(spec, theta0, x, y, w, w_test, feats, colmask, comp):
+def _lane(spec, with_compliance, theta0, x, y, w, w_test, feats, colmask):
     k = theta0.shape[0]
     s = feats.shape[1]
-    mask = jnp.concatenate([jnp.ones(k), comp[None], colmask])
+    comp = 1.0 if with_compliance else 0.0
+    mask = jnp.concatenate([jnp.ones(k), jnp.full(1, comp), colmask])
     sw = jnp.sqrt(w)
+    lin = feats * colmask[None, :]
 
     def pred(params):
         theta, c, phi = params[:k], params[k], params[k + 1:]
-        return _predict(spec, theta, c * comp, x, comp) + feats @ (phi * colmask)
+        return _predict(spec, theta, c, x, with_compliance) + lin @ phi
 
     def resid(params):
         return sw * (y - pred(params))
 
     def normal(params):
         r = resid(params)
-        jac = -jax.jacfwd(pred)(params) * sw[:, None]
+        # The effects' constants enter linearly: their Jacobian columns are the features;
+        # only the base constants (and c) need forward-mode derivatives of the model.
+        jac_nl = jax.jacfwd(
+            lambda tc: _predict(spec, tc[:k], tc[k], x, with_compliance))(params[: k + 1])
+        jac = -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]
         jac = jac * mask[None, :]
         return r, jac
 
@@ -396,8 +427,9 @@ def _lane(spec, theta0, x, y, w, w_test, feats, colmask, comp):
         sse_new = r_new @ r_new
         better = jnp.isfinite(sse_new) & (sse_new <= sse)
         params = jnp.where(better, trial, params)
+        # At the optimum a step changes the SSE by rounding only, better or not.
         rel = jnp.abs(sse - sse_new) / jnp.maximum(sse, 1e-300)
-        done = better & (rel < 1e-13)
+        done = (rel < 1e-11) & (lam < 1.0)
         lam = jnp.where(better, jnp.maximum(lam / 5.0, 1e-12), lam * 8.0)
         done = done | (lam > 1e12)
         return params, lam, jnp.where(better, sse_new, sse), it + 1, done
@@ -420,11 +452,12 @@ def _lane(spec, theta0, x, y, w, w_test, feats, colmask, comp):
     return params, sse, sse_test, resid_all, jtj_inv, ok, rank
 
 
-def _fit_lanes_impl(spec, theta0, x, y, w, w_test, feats, colmask, comp):
-    return jax.vmap(lambda *a: _lane(spec, *a))(theta0, x, y, w, w_test, feats, colmask, comp)
+def _fit_lanes_impl(spec, with_compliance, theta0, x, y, w, w_test, feats, colmask):
+    return jax.vmap(lambda *a: _lane(spec, with_compliance, *a))(
+        theta0, x, y, w, w_test, feats, colmask)
 
 
-_fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=0)
+_fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))
 
 
 def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[dict]:
