@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
 __all__ = ["covariate_dependence", "ljung_box", "runs_test", "scaled", "legendre_basis"]
 
@@ -42,6 +41,8 @@ def runs_test(residuals: list[np.ndarray]) -> dict:
         mean += 2.0 * n1 * n2 / n + 1.0
         var += 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n**2 * (n - 1.0))
         n_total += n
+    from scipy import stats  # imported here: scipy.stats costs half a second at import
+
     if var <= 0:
         return {"runs": runs, "expected": mean, "z": math.nan, "p_value": math.nan}
     z = (runs - mean) / math.sqrt(var)
@@ -62,6 +63,8 @@ def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
         acf = np.array([float(r[k:] @ r[:-k]) / denom for k in range(1, h + 1)])
         q += n * (n + 2.0) * float(np.sum(acf**2 / (n - np.arange(1, h + 1))))
         dof += h
+    from scipy import stats
+
     p = float(stats.chi2.sf(q, dof)) if dof else math.nan
     num = sum(float((r - np.mean(r))[1:] @ (r - np.mean(r))[:-1]) for r in residuals if len(r) > 1)
     den = sum(float((r - np.mean(r)) @ (r - np.mean(r))) for r in residuals)
@@ -137,6 +140,8 @@ def covariate_dependence(
     df2 = len(r) - n_groups - df1
     if df1 <= 0 or df2 <= 0 or rss1 <= 0:
         return {"f": math.nan, "dof": [int(df1), int(df2)], "p_value": math.nan, "bins": bins}
+    from scipy import stats
+
     f = ((rss0 - rss1) / df1) / (rss1 / df2)
     return {"f": float(f), "dof": [int(df1), int(df2)],
             "p_value": float(stats.f.sf(f, df1, df2)), "bins": bins,
