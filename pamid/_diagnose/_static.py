@@ -462,7 +462,7 @@ _fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))
 
 def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[dict]:
     """Per muscle: every selected effect's constants with Wald-t intervals."""
-    from scipy import stats
+    from .._fit._intervals import t_critical
 
     k = problem.spec.n_params
     out = []
@@ -470,7 +470,7 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
     for i in range(len(params)):
         dof = int(fit.n[i] - fit.k[i])
         s2 = float(fit.sse[i]) / dof if dof > 0 else math.nan
-        t = float(stats.t.ppf(0.5 + level / 2, dof)) if dof > 0 else math.nan
+        t = float(t_critical(dof, level))
         se = np.sqrt(np.maximum(np.diag(cov_un[i]) * s2, 0.0))
         if not fit.extra["full_rank"][i]:
             se = np.full_like(se, np.nan)  # some constants are not identifiable: no interval
