@@ -3,11 +3,12 @@
     .venv/bin/python benchmarks/profile_pieces.py [--n 1000] [--repeats 7]
 
 Times (median of warm calls, after one compiling call) at N muscles of virtual-bench data:
-the variable-projection start and its parts (grid scan, parabolic refinement, final QR
-solve), the optimistix Gauss–Newton solve from that start, batched LAPACK calls of the
-shapes pamid uses, and, for scale, a hand-written batched Gauss–Newton (analytic Jacobian,
-normal equations, fixed step count) in JAX and in NumPy from the same start. The hand-written
-solvers are a yardstick for what the hardware can do, not a proposal to replace pamid's.
+the default Sárosi solve (``pamid/_fit/_gauss_newton.py``) and its parts (the start: subsample,
+coarse scan, parabolic refinement; one Gauss–Newton pass over the samples; the iterations),
+the previous default (the 24-point variable-projection start and its parts, then optimistix
+Gauss–Newton), batched LAPACK calls of the shapes pamid uses, and, for scale, a hand-written
+batched Gauss–Newton (analytic Jacobian, normal equations, fixed step count) in JAX and in
+NumPy from the same start: a yardstick for what the hardware can do.
 It also checks the scaling of ``bench_to_fit_data`` (from a CSV loaded with ``load_bench``).
 """
 
@@ -29,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fit_batch  # noqa: E402
 
 import pamid  # noqa: E402
+from pamid._fit import _gauss_newton as gn  # noqa: E402
 from pamid._fit import _variable_projection as vp  # noqa: E402
 from pamid._fit._least_squares import _solve_batch, solve  # noqa: E402
 from pamid._fit._spec import SAROSI  # noqa: E402
@@ -131,7 +133,53 @@ def main(argv=None) -> int:
         print(f"  {label}: {fit_batch.fmt_s(seconds)}", flush=True)
 
     print(f"N = {n}, {int(np.asarray(w).sum(axis=1).max())} samples per muscle", flush=True)
-    add("solve(gauss-newton) total", timeit(lambda: solve(SAROSI, data), rep))
+    add(
+        "solve(gauss-newton) total, default (written-out GN)",
+        timeit(lambda: solve(SAROSI, data), rep),
+    )
+    add(
+        "  start alone (subsample + coarse scan + refinement)",
+        timeit(lambda: jax.block_until_ready(gn.sarosi_fast_start(x, y, w)), rep),
+    )
+    sub = jax.jit(lambda x, y, w: gn._subsample(x + (y,), w, gn.START_SAMPLES))
+    add("    subsample alone", timeit(lambda: jax.block_until_ready(sub(x, y, w)), rep))
+    add(
+        "    scan alone (no refinement)",
+        timeit(lambda: jax.block_until_ready(gn.sarosi_fast_start(x, y, w, n_refine=0)), rep),
+    )
+    start = gn.sarosi_fast_start(x, y, w)
+    add(
+        "  iterations from that start",
+        timeit(lambda: jax.block_until_ready(gn.sarosi_gauss_newton(x, y, w, start)), rep),
+    )
+    steps = np.asarray(gn.sarosi_gauss_newton(x, y, w, start)[2])
+    print(f"    (passes over the data: max {steps.max()}, median {np.median(steps):g})")
+    one_pass = jax.jit(
+        lambda t, s, p, k, y, w: gn._pass(t, s, p, k, y, w, jnp.sqrt(w), 1e-10, 1e-10, True)
+    )
+    add(
+        "    one full pass over the samples (22 sums + 1 maximum)",
+        timeit(lambda: jax.block_until_ready(one_pass(start, start, *x, y, w)), rep),
+    )
+    add(
+        "previous default: VP start + optimistix GN",
+        timeit(
+            lambda: jax.block_until_ready(
+                _solve_batch(
+                    SAROSI,
+                    "gauss-newton",
+                    vp.sarosi_variable_projection_start(x, y, w),
+                    x,
+                    y,
+                    w,
+                    100,
+                    1e-10,
+                    1e-10,
+                )
+            ),
+            rep,
+        ),
+    )
     add(
         "  VP start (grid 24 + 6 refinements + QR)",
         timeit(lambda: jax.block_until_ready(vp.sarosi_variable_projection_start(x, y, w)), rep),

@@ -148,8 +148,10 @@ def fit_least_squares(
         data: a loaded bench file (:func:`pamid.load_bench`) or a packed :class:`FitData`.
         model: "sarosi" (Sárosi eq. 2.1), "cullinan" (Cullinan eq. 3: A–E from static
             data, and G too when the data carry ``velocity_mm_s``), or a ModelSpec.
-        solver: "gauss-newton" (default: optimistix, from a variable-projection start),
-            "levenberg-marquardt", "variable-projection", "jaxopt-levenberg-marquardt".
+        solver: "gauss-newton" (default; for the Sárosi model the written-out batched
+            Gauss–Newton of ``_gauss_newton.py`` with its own start, otherwise
+            optimistix's), "levenberg-marquardt", "variable-projection",
+            "jaxopt-levenberg-marquardt".
         intervals: any of "wald" (always computed), "profile", "bootstrap".
         n_bootstrap: bootstrap replicates per muscle (whole curves resampled).
         key: PRNG key, required for the bootstrap.

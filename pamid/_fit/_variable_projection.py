@@ -18,8 +18,10 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-_S_GRID = jnp.concatenate([-jnp.geomspace(30.0, 0.05, 20), jnp.geomspace(0.05, 3.0, 4)])
+# NumPy, not jnp: a jnp constant would start the JAX backend at import (~0.15 s).
+_S_GRID = np.concatenate([-np.geomspace(30.0, 0.05, 20), np.geomspace(0.05, 3.0, 4)])
 
 
 def _design(a3, p, k):
@@ -65,18 +67,22 @@ def _linear_solve(a3, p, k, y, w, accurate=True):
     return beta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
 
-def _small_cholesky_solve(a, b):
+def _small_cholesky_solve(a, b, with_pivot=False):
     """Solve a·z = b for a small symmetric positive definite ``a``, unrolled.
 
     Batched LAPACK calls on 5×5 matrices cost microseconds each on the CPU; written out as
     scalar arithmetic, the solve becomes a few dozen elementwise operations across the batch.
+    ``with_pivot``: also return the smallest pivot before clamping (≤ 0: ``a`` is not
+    positive definite and z is meaningless).
     """
     n = a.shape[0]
     low = [[None] * n for _ in range(n)]
+    pivots = []
     for i in range(n):
         for j in range(i + 1):
             acc = a[i, j] - sum(low[i][m] * low[j][m] for m in range(j))
             if i == j:
+                pivots.append(acc)
                 low[i][i] = jnp.sqrt(jnp.maximum(acc, 1e-300))
             else:
                 low[i][j] = acc / low[j][j]
@@ -85,6 +91,8 @@ def _small_cholesky_solve(a, b):
         z[i] = (b[i] - sum(low[i][m] * z[m] for m in range(i))) / low[i][i]
     for i in reversed(range(n)):  # backward: Lᵀ·z = u
         z[i] = (z[i] - sum(low[m][i] * z[m] for m in range(i + 1, n))) / low[i][i]
+    if with_pivot:
+        return jnp.stack(z), jnp.min(jnp.stack(pivots))
     return jnp.stack(z)
 
 
