@@ -5,7 +5,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.pamid-installed
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench clean
+.PHONY: install demo test bench bench-all bench-quick clean
 
 $(STAMP): pyproject.toml
 	@py=$$(sh scripts/find-python.sh) || exit 1; \
@@ -23,6 +23,12 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VPY) benchmarks/fit_batch.py
+
+bench-all: $(STAMP)
+	$(VPY) benchmarks/run.py
+
+bench-quick: $(STAMP)
+	$(VPY) benchmarks/run.py --quick
 
 clean:
 	rm -rf $(VENV) $(DEMO_OUT)

@@ -84,6 +84,8 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "bench_to_fit_data": ("._fit._api", "bench_to_fit_data"),
     "fit_least_squares": ("._fit._api", "fit_least_squares"),
     "FitData": ("._fit._batch", "FitData"),
+    "use_devices": ("._fit._sharding", "use_devices"),
+    "lane_devices": ("._fit._sharding", "lane_devices"),
     "pack_muscles": ("._fit._batch", "pack"),
     "Cullinan": ("._models._cullinan", "Cullinan"),
     "cullinan_force": ("._models._cullinan", "cullinan_force"),
@@ -256,6 +258,8 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._fit._api import fit_least_squares as fit_least_squares
     from ._fit._batch import FitData as FitData
     from ._fit._batch import pack as pack_muscles
+    from ._fit._sharding import lane_devices as lane_devices
+    from ._fit._sharding import use_devices as use_devices
     from ._models._cullinan import Cullinan as Cullinan
     from ._models._cullinan import cullinan_force as cullinan_force
     from ._models._cullinan import cullinan_spring_rate as cullinan_spring_rate

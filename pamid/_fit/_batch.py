@@ -15,6 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ._sharding import chosen_devices, lane_devices, lane_sharding, lanes_per_call
+
 
 class FitData(NamedTuple):
     """A batch of muscles for fitting.
@@ -86,12 +88,30 @@ def map_lanes(fn, *arrays, chunk: int | None = None):
     Every chunk has the same size (the last is padded by repeating its final lane, and the
     padding is dropped), so ``fn`` compiles once. Outputs are pytrees of arrays with a
     leading lane axis, concatenated as NumPy arrays.
+
+    With several devices (:func:`pamid._fit._sharding.lane_devices`: all of this process's
+    GPUs, or those chosen with ``use_devices``) every chunk holds up to ``chunk`` lanes per
+    device, padded to a multiple of the device count, and is split evenly across the devices
+    along the lane axis; ``fn`` (a jitted, vmapped function) then runs partitioned, each
+    device on its own lanes. With one device nothing of this happens.
     """
     import jax
 
     chunk = CHUNK_LANES if chunk is None else chunk
     leaves = jax.tree.leaves(arrays)
     n = leaves[0].shape[0]
+    devices = lane_devices()
+    if len(devices) > 1:
+        return _map_lanes_sharded(fn, arrays, n, chunk, devices)
+    if chosen_devices() is not None:  # one device picked with use_devices: run there
+        with jax.default_device(devices[0]):
+            return _map_lanes_one_device(fn, arrays, n, chunk)
+    return _map_lanes_one_device(fn, arrays, n, chunk)
+
+
+def _map_lanes_one_device(fn, arrays, n, chunk):
+    import jax
+
     if n <= chunk:
         return jax.tree.map(np.asarray, fn(*arrays))
     outputs = []
@@ -101,4 +121,25 @@ def map_lanes(fn, *arrays, chunk: int | None = None):
         part = jax.tree.map(lambda a: a[idx], arrays)
         out = jax.tree.map(np.asarray, fn(*part))
         outputs.append(jax.tree.map(lambda a: a[: stop - start], out))
+    return jax.tree.map(lambda *xs: np.concatenate(xs, axis=0), *outputs)
+
+
+def _map_lanes_sharded(fn, arrays, n, chunk, devices):
+    """:func:`map_lanes` over several devices: each call's lanes split evenly across them."""
+    import jax
+
+    sharding = lane_sharding(tuple(devices))
+    size = lanes_per_call(n, chunk, len(devices))
+    outputs = []
+    for start in range(0, n, size):
+        stop = min(start + size, n)
+        if size == n:  # one call, no padding: the arrays go to the devices as they are
+            part = jax.tree.map(lambda a: jax.device_put(a, sharding), arrays)
+        else:
+            idx = np.minimum(np.arange(start, start + size), stop - 1)
+            part = jax.tree.map(lambda a: jax.device_put(a[idx], sharding), arrays)
+        out = jax.tree.map(np.asarray, fn(*part))
+        outputs.append(jax.tree.map(lambda a: a[: stop - start], out))
+    if len(outputs) == 1:
+        return outputs[0]
     return jax.tree.map(lambda *xs: np.concatenate(xs, axis=0), *outputs)
