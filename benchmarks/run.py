@@ -1,0 +1,892 @@
+"""Every benchmark in one table: pamid beside its reference, measured in the same run.
+
+    .venv/bin/python benchmarks/run.py            # full: static fits N = 1 … 100,000, etc.
+    .venv/bin/python benchmarks/run.py --quick    # small sizes, fewer repeats (a few minutes)
+    .venv/bin/python benchmarks/run.py --json     # a JSON list of rows on stdout (the table
+                                                  # and progress go to stderr)
+
+Rows (pamid | reference):
+
+- ``static fit``: ``pamid.fit_least_squares`` (Sárosi eq. 2.1, Wald intervals) on N
+  virtual-bench muscles (``fit_batch.make_data``: Table 3-1 × (1 + 0.03·normal), Sárosi's
+  protocol, 300 samples each) | a loop of ``scipy.optimize.least_squares`` (analytic
+  Jacobian, lm, tolerances 1e-12) and, in a second row, a loop of ``curve_fit``, both from
+  the Table 3-1 constants (``fit_batch.scipy_ls_loop`` / ``curve_fit_loop``). Above 10,000
+  muscles the 10,000 simulated muscles are repeated (simulating is slower than fitting).
+- ``cullinan fit``: ``pamid.fit_least_squares(..., "cullinan")`` (Cullinan eq. 3, A–E) on N
+  muscles with the traditional-PAM constants × (1 + 0.03·normal) on the static bench grid
+  of :func:`pamid.simulate_braided_pam_bench`, 2 N noise | a ``least_squares`` loop with the
+  analytic Jacobian of eq. 3.
+- ``decays exact`` / ``decays rk4`` (RK4 in the full run only): :func:`pamid.simulate_oscillator`
+  on N decays of 4 s at 1 kHz (``simulate_batch.decay_params``) | a ``solve_ivp`` loop
+  (DOP853, rtol 1e-8, atol 1e-10: the cheapest setting reaching RK4's accuracy, see
+  simulate_batch.py).
+- ``mcmc``: pamid's stacked ensembles (32 walkers per muscle, 80 % differential evolution,
+  20 % stretch) | a loop of emcee samplers with the same moves and a plain NumPy
+  log-probability. Besides time, samples per second and effective samples per second (the
+  smallest ESS over the constants and σ, emcee's autocorrelation estimator on both).
+- ``diagnose``: `pamid diagnose`'s first selection step on a 100-muscle file hiding a
+  hysteresis loop (baseline + every candidate, on all data and on each held-out fold, every
+  muscle: one batched call) | the same refits as a loop of ``least_squares`` (lm, analytic
+  Jacobian); the whole diagnosis end to end is reported beside it.
+
+Method. Every (row, side, N) runs in its own subprocess, so that its peak memory
+(``VmHWM``, see :func:`_peak_rss_mb`; imports and data included) is its own. pamid: "compile" =
+first call − steady time (the persistent compilation cache is off), "pamid_s" = median of
+warm calls with the results converted to NumPy. References larger than the cap are timed on
+the first muscles (decays) and scaled linearly (``reference_extrapolated``); their results
+are compared with pamid's on those muscles (``max_rel_diff``; decays: max |Δangle| in rad).
+Cost growth: the slope of log(time) against log(N) over N ≥ 100, flagged when above 1.1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SLOPE_FLAG = 1.1
+SIM_MAX = 10_000  # static fits: muscles simulated; larger N repeat them
+
+SIZES = {
+    "static": {"quick": (1, 100, 1000), "full": (1, 100, 1000, 10_000, 100_000)},
+    "cullinan": {"quick": (1, 100, 1000), "full": (1, 100, 1000, 10_000)},
+    "decays": {"quick": (1, 100, 1000), "full": (1, 100, 1000, 10_000)},
+    "decays_rk4": {"quick": (), "full": (1, 100, 1000, 10_000)},  # quick: the default only
+    "mcmc": {"quick": (1, 100), "full": (1, 10, 100, 1000)},
+}
+#: Largest reference loop actually run (the rest scaled linearly).
+REF_MAX = {
+    "static": {"quick": 300, "full": 1000},
+    "cullinan": {"quick": 300, "full": 1000},
+    "decays": {"quick": 30, "full": 100},
+    "decays_rk4": {"quick": 30, "full": 100},
+    "mcmc": {"quick": 5, "full": 100},
+}
+DECAY = {"seconds": 4.0, "method": "DOP853", "rtol": 1e-8, "atol": 1e-10}
+MCMC_STEPS = {"quick": 1000, "full": 2000}
+
+
+def say(*parts, file=None):
+    print(*parts, file=file or sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------------------
+# Workers: each runs in its own process and prints one "RESULT {json}" line.
+# --------------------------------------------------------------------------------------
+
+
+def _peak_rss_mb() -> float:
+    """Peak resident memory of this process in MB.
+
+    Linux: ``VmHWM`` of /proc/self/status. ``resource.getrusage(...).ru_maxrss`` is not
+    used there because it carries over across fork + exec: every worker would report at
+    least the parent's peak at the moment it was started (measured: a child of a 313 MB
+    parent reported 313 MB, its VmHWM 13 MB). Elsewhere ``ru_maxrss`` (KiB on Linux-likes,
+    bytes on macOS).
+    """
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
+    import resource
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 1024.0
+
+
+def _time_pamid(fn, repeats):
+    """First call (compile + run) after a cache clear, then the median of warm calls."""
+    import jax
+
+    jax.clear_caches()
+    t = time.perf_counter()
+    out = fn()
+    first = time.perf_counter() - t
+    walls = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fn()
+        walls.append(time.perf_counter() - t)
+    steady = statistics.median(walls)
+    return {"pamid_s": steady, "first_s": first, "compile_s": max(first - steady, 0.0)}, out
+
+
+def _time_reference(fn, repeats, min_total_s=2.0):
+    """Median of up to ``repeats`` runs (fewer where one run already takes ``min_total_s``)."""
+    walls = []
+    out = None
+    while len(walls) < repeats and (not walls or sum(walls) < min_total_s):
+        t = time.perf_counter()
+        out = fn()
+        walls.append(time.perf_counter() - t)
+    return statistics.median(walls), out
+
+
+def _static_data(path, n_ref):
+    import jax.numpy as jnp
+    import numpy as np
+
+    import pamid
+
+    z = np.load(path)
+    data = pamid.FitData(
+        x=(jnp.asarray(z["x0"]), jnp.asarray(z["x1"])),
+        y=jnp.asarray(z["y"]),
+        w=jnp.asarray(z["w"]),
+        curve=jnp.asarray(z["curve"]),
+    )
+    groups = []
+    for i in range(min(n_ref, z["y"].shape[0])):
+        keep = z["w"][i] > 0
+        groups.append(((z["x0"][i, keep], z["x1"][i, keep]), z["y"][i, keep]))
+    return data, groups
+
+
+def _cullinan_data(n, seed=3):
+    """N muscles of Cullinan eq. 3 (A–E): the traditional-PAM constants × (1 + 0.03·normal),
+    on the grid of the virtual static bench (StaticBenchProtocol), load-cell noise 2 N."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import pamid
+
+    k_grid, k_theta, k_noise = jax.random.split(jax.random.key(seed), 3)
+    grid = pamid.simulate_braided_pam_bench(k_grid, pamid.braided_pam())
+    p = grid["pressure_kPa"].to_numpy()
+    y = grid["contraction_mm"].to_numpy()
+    base = np.asarray(pamid.traditional_pam().to_vector(with_g=False))
+    theta = base * (1.0 + 0.03 * np.asarray(jax.random.normal(k_theta, (n, 5))))
+    force = np.asarray(pamid.cullinan_force(pamid.Cullinan.from_vector(theta[:, None, :]), p, y))
+    force = force + 2.0 * np.asarray(jax.random.normal(k_noise, force.shape))
+    shape = force.shape
+    data = pamid.FitData(
+        x=(jnp.broadcast_to(p, shape), jnp.broadcast_to(y, shape)),
+        y=jnp.asarray(force),
+        w=jnp.ones(shape),
+        curve=jnp.zeros(shape, dtype=int),
+    )
+    return data, p, y, force
+
+
+def _cullinan_scipy_loop(p, y, force, n):
+    """least_squares per muscle, analytic Jacobian of eq. 3 (linear in A–E), from zeros."""
+    import numpy as np
+    from scipy.optimize import least_squares
+
+    jac = np.stack([np.ones_like(p), p, -y, -p * y, -y * y], axis=1)
+    theta = np.empty((n, 5))
+    for i in range(n):
+        res = least_squares(
+            lambda th, f=force[i]: jac @ th - f,
+            np.zeros(5),
+            jac=lambda th: jac,
+            method="lm",
+            x_scale="jac",
+            ftol=1e-12,
+            xtol=1e-12,
+            gtol=1e-12,
+        )
+        theta[i] = res.x
+    return theta
+
+
+def _emcee_numpy(data, start, prior, n_steps, thin):
+    """A loop of emcee samplers, NumPy log-probability; returns seconds and (M, draws, W, d)."""
+    import emcee
+    import numpy as np
+
+    from pamid._sampling import _mcmc, _posterior
+
+    f = _posterior.numpy_log_prob("sarosi", prior)
+    moves = [
+        (emcee.moves.DEMove(), _mcmc.DE_FRACTION),
+        (emcee.moves.StretchMove(), 1 - _mcmc.DE_FRACTION),
+    ]
+    samplers, states = [], []
+    for i in range(data.n_muscles):
+        xi = tuple(np.asarray(a[i]) for a in data.x)
+        yi, wi = np.asarray(data.y[i]), np.asarray(data.w[i])
+        sampler = emcee.EnsembleSampler(
+            start.shape[1],
+            start.shape[2],
+            lambda z, xi=xi, yi=yi, wi=wi: f(z, xi, yi, wi),
+            vectorize=True,
+            moves=moves,
+        )
+        sampler.random_state = np.random.RandomState(i).get_state()  # fixed, per muscle
+        samplers.append(sampler)
+        states.append(np.asarray(start[i]))
+    t = time.perf_counter()
+    for i, s in enumerate(samplers):
+        states[i] = s.run_mcmc(states[i], n_steps // thin, thin_by=thin)
+    seconds = time.perf_counter() - t
+    return seconds, np.stack([s.get_chain() for s in samplers])
+
+
+def _ess(chain, thin):
+    """Per muscle, the smallest effective sample size over the coordinates, from a chain
+    (M, draws, W, d), with emcee's integrated-time estimator (pamid's copy)."""
+    import numpy as np
+
+    from pamid._sampling._mcmc import integrated_time
+
+    tau_draws = np.maximum(integrated_time(chain), 1.0)  # (M, d), in draws
+    n = chain.shape[1] * chain.shape[2]
+    return (n / tau_draws).min(axis=-1), tau_draws.max() * thin
+
+
+def worker(spec: dict) -> dict:
+    import jax
+
+    jax.config.update("jax_enable_compilation_cache", False)  # compile time is measured
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    bench, side, n, quick = spec["bench"], spec["side"], spec["n"], spec["quick"]
+    repeats = 3 if quick else 5
+    n_ref = min(n, spec["ref_max"])
+    out = {}
+    result = None
+
+    if bench in ("static", "static_curve_fit"):
+        data, groups = _static_data(spec["data"], n_ref)
+        out["rss_setup_mb"] = _peak_rss_mb()
+        if side == "pamid":
+            import pamid
+
+            timing, fit = _time_pamid(lambda: pamid.fit_least_squares(data), repeats)
+            out.update(timing, converged=float(np.mean(fit.converged)))
+            result = fit.theta[:n_ref]
+        else:
+            import fit_batch
+
+            if bench == "static":
+                fn = lambda: fit_batch.scipy_ls_loop(groups, fit_batch.TABLE_3_1, "lm", 1e-12)[0]  # noqa: E731
+            else:
+                fn = lambda: fit_batch.curve_fit_loop(groups, fit_batch.TABLE_3_1)  # noqa: E731
+            seconds, result = _time_reference(fn, repeats)
+            out["reference_s"] = seconds * n / n_ref
+
+    elif bench == "diagnose":
+        extra, result = bench_diagnose_worker(spec)
+        out.update(extra)
+
+    elif bench == "cullinan":
+        data, p, y, force = _cullinan_data(n)
+        out["rss_setup_mb"] = _peak_rss_mb()
+        if side == "pamid":
+            import pamid
+
+            timing, fit = _time_pamid(lambda: pamid.fit_least_squares(data, "cullinan"), repeats)
+            out.update(timing, converged=float(np.mean(fit.converged)))
+            result = fit.theta[:n_ref]
+        else:
+            seconds, result = _time_reference(
+                lambda: _cullinan_scipy_loop(p, y, force, n_ref), repeats
+            )
+            out["reference_s"] = seconds * n / n_ref
+
+    elif bench in ("decays_exact", "decays_rk4"):
+        import jax.numpy as jnp
+        import simulate_batch
+
+        import pamid
+
+        zeta, fn_hz, angle0 = simulate_batch.decay_params(n)
+        out["rss_setup_mb"] = _peak_rss_mb()
+        if side == "pamid":
+            osc = pamid.DampedOscillator.from_modal(jnp.asarray(zeta), jnp.asarray(fn_hz), 0.46)
+            method = bench.split("_")[1]
+            timing, angle = _time_pamid(
+                lambda: np.asarray(
+                    pamid.simulate_oscillator(
+                        osc,
+                        jnp.asarray(angle0),
+                        duration_s=DECAY["seconds"],
+                        method=method,
+                        with_rate=False,
+                    ).angle_rad
+                ),
+                repeats,
+            )
+            out.update(timing)
+            result = angle[:n_ref]
+        else:
+            ts = np.arange(int(DECAY["seconds"] * 1000) + 1) / 1000.0
+            seconds, result = _time_reference(
+                lambda: simulate_batch.scipy_decays(
+                    zeta[:n_ref],
+                    fn_hz[:n_ref],
+                    angle0[:n_ref],
+                    ts,
+                    DECAY["method"],
+                    DECAY["rtol"],
+                    DECAY["atol"],
+                ),
+                1 if n_ref > 10 else repeats,
+            )
+            out["reference_s"] = seconds * n / n_ref
+
+    elif bench == "mcmc":
+        import mcmc_batch
+
+        from pamid._fit._spec import SAROSI
+        from pamid._sampling import _mcmc, _posterior
+
+        prior = _posterior.default_prior(SAROSI)
+        log_prob = _mcmc._log_prob(SAROSI, prior, "normal", 4.0)
+        data = mcmc_batch.make_data(n, seed=n)
+        start = mcmc_batch.start_ball(data, prior, log_prob)
+        out["rss_setup_mb"] = _peak_rss_mb()
+        n_steps, thin, walkers = spec["mcmc_steps"], mcmc_batch.THIN, mcmc_batch.W
+        if side == "pamid":
+            backend = _mcmc._StackedBackend(
+                log_prob, jax.random.key(2), start, data, _mcmc.DE_FRACTION
+            )
+            # Chunks of 200 steps, as fit_mcmc runs them (the chunk length is static: one
+            # compilation); the first chunk compiles and serves as burn-in.
+            t = time.perf_counter()
+            backend.advance(200, thin)
+            first = time.perf_counter() - t
+            t = time.perf_counter()
+            chain = np.concatenate(
+                [backend.advance(200, thin)[0] for _ in range(n_steps // 200)], axis=1
+            )
+            seconds = time.perf_counter() - t
+            out.update(
+                pamid_s=seconds, first_s=first, compile_s=max(first - seconds * 200 / n_steps, 0.0)
+            )
+        else:
+            sub = jax.tree.map(lambda a: a[:n_ref], data)
+            seconds, chain = _emcee_numpy(sub, start[:n_ref], prior, n_steps, thin)
+            seconds *= n / n_ref
+            out["reference_s"] = seconds
+        ess, tau_max = _ess(chain, thin)
+        total_ess = float(ess.sum()) * n / chain.shape[0]
+        out.update(
+            steps=n_steps,
+            samples_per_s=n * walkers * n_steps / seconds,
+            ess_per_s=total_ess / seconds,
+            tau_max_steps=float(tau_max),
+        )
+    else:
+        raise ValueError(f"unknown benchmark {bench!r}")
+
+    out["peak_rss_mb"] = _peak_rss_mb()
+    if result is not None and spec.get("result"):
+        np.save(spec["result"], np.asarray(result))
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# The parent: data, subprocesses, table.
+# --------------------------------------------------------------------------------------
+
+
+def run_worker(spec: dict, timeout: float) -> dict:
+    t = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            [sys.executable, __file__, "--worker", json.dumps(spec)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout:.0f} s"}
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+    if proc.returncode != 0 or not lines:
+        tail = proc.stderr.strip().splitlines()[-3:]
+        return {"error": f"exit {proc.returncode}: " + " | ".join(tail)}
+    res = json.loads(lines[-1][len("RESULT ") :])
+    res["wall_s"] = time.perf_counter() - t
+    return res
+
+
+def _revision() -> str:
+    sys.path.insert(0, str(HERE))
+    import fit_batch
+
+    return fit_batch._revision()  # "git <hash>", "+dirty" with uncommitted changes in pamid/
+
+
+def make_static_data(sizes, tmp: Path) -> dict:
+    """Simulate once (``fit_batch.make_data``) and store the packed arrays for the workers."""
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    import fit_batch
+
+    paths = {}
+    cache = {}
+    for n in sizes:
+        m = min(n, SIM_MAX)
+        if m not in cache:
+            t = time.perf_counter()
+            data = fit_batch.make_data(m)[2]  # (frame, groups, FitData, thetas, pack seconds)
+            cache[m] = {
+                "x0": np.asarray(data.x[0]),
+                "x1": np.asarray(data.x[1]),
+                "y": np.asarray(data.y),
+                "w": np.asarray(data.w),
+                "curve": np.asarray(data.curve),
+            }
+            say(f"  simulated {m} muscles in {time.perf_counter() - t:.1f} s")
+        reps = -(-n // m)
+        arrays = {k: np.concatenate([v] * reps)[:n] if reps > 1 else v for k, v in cache[m].items()}
+        paths[n] = tmp / f"static_{n}.npz"
+        np.savez(paths[n], **arrays)
+    return paths
+
+
+ROWS = (
+    # (bench, label, reference label, sizes key)
+    ("static", "static fit (Sárosi)", "scipy least_squares loop (analytic J)", "static"),
+    ("static_curve_fit", "static fit (Sárosi)", "scipy curve_fit loop", "static"),
+    ("cullinan", "cullinan fit (eq. 3)", "scipy least_squares loop (analytic J)", "cullinan"),
+    ("decays_exact", "decays, exact", "solve_ivp loop (DOP853 rtol 1e-8)", "decays"),
+    ("decays_rk4", "decays, RK4", "solve_ivp loop (DOP853 rtol 1e-8)", "decays_rk4"),
+    ("mcmc", "mcmc, stacked ensembles", "emcee loop, NumPy log-prob", "mcmc"),
+)
+
+
+def compare(bench, a, b):
+    """pamid's result against the reference's, on the reference's muscles."""
+    import numpy as np
+
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if bench.startswith("decays"):
+        return float(np.max(np.abs(a - b)))  # rad
+    return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300)))
+
+
+def make_diagnose_data(n: int, tmp: Path) -> Path:
+    """A bench file of ``n`` muscles (Table 3-1 × (1 + 0.03·normal)) hiding a hysteresis loop
+    of 9 N at 3 bar, so that the diagnosis has something to find and refit."""
+    import jax
+
+    import pamid
+    from pamid._io import write_frame_atomic
+
+    theta = pamid.table_3_1().to_vector()
+    thetas = theta * (1.0 + 0.03 * jax.random.normal(jax.random.key(11), (n, 6)))
+    proto = pamid.SarosiProtocol(min_force_N=10.0, effects=(pamid.InjectedHysteresis(9.0),))
+    frame = pamid.simulate_sarosi_bench(jax.random.key(12), pamid.Sarosi.from_vector(thetas), proto)
+    path = tmp / f"diagnose_{n}.csv"
+    write_frame_atomic(path, frame)
+    return path
+
+
+def _diagnose_first_step(path):
+    """The problem and the first selection step's sets (baseline + every candidate)."""
+    import pamid
+    from pamid._diagnose._static import StaticProblem
+    from pamid._fit._spec import SAROSI
+
+    problem = StaticProblem(pamid.load_bench(path), SAROSI)
+    return problem, [(), *[(c,) for c in problem.candidate_names]]
+
+
+def _scipy_refits(problem, sets, n_ref):
+    """The first selection step done by hand: one ``scipy.optimize.least_squares`` (lm) per
+    (set, muscle, fold), analytic Jacobian (Sárosi eq. 2.1's partial derivatives and the
+    effects' features; 2-point differences for the implicit compliance law). Returns the
+    training SSE of every lane, in pamid's lane order, for the muscles < n_ref."""
+    import numpy as np
+    from scipy.optimize import least_squares
+
+    k = 6
+    out = []
+    for s in sets:
+        cols = [c for name in s if name != "compliance" for c in problem.effect(name).columns]
+        comp = "compliance" in s
+        for m in range(n_ref):
+            w_all = problem.data.w[m] > 0
+            p_bar, kappa = (np.asarray(x[m]) for x in problem.data.x)
+            y = np.asarray(problem.data.y[m])
+            for fold in range(problem.n_folds + 1):
+                train = w_all & ((problem.fold[m] != fold - 1) | (fold == 0))
+                feats = problem.features[m, fold][:, cols]
+                pp, kk, yy, ff = p_bar[train], kappa[train], y[train], feats[train]
+
+                def force(theta, c, pp=pp, kk=kk):
+                    a1, a2, a3, a4, a5, a6 = theta
+                    if not comp:
+                        return (a1 * pp + a2) * np.exp(a3 * kk) + a4 * kk * pp + a5 * pp + a6
+                    f = (a1 * pp + a2) * np.exp(a3 * kk) + a4 * kk * pp + a5 * pp + a6
+                    for _ in range(30):  # fixed point of F = F_model(p, κ + c·F)
+                        kc = kk + c * f
+                        f = (a1 * pp + a2) * np.exp(a3 * kc) + a4 * kc * pp + a5 * pp + a6
+                    return f
+
+                def resid(v, ff=ff, yy=yy):
+                    c = v[k] if comp else 0.0
+                    return force(v[:k], c) + ff @ v[k + comp:] - yy
+
+                def jac(v, pp=pp, kk=kk, ff=ff):
+                    a1, a2, a3 = v[:3]
+                    e = np.exp(a3 * kk)
+                    base = np.column_stack([pp * e, e, (a1 * pp + a2) * kk * e, kk * pp, pp,
+                                            np.ones_like(pp)])
+                    return np.column_stack([base, ff])
+
+                v0 = np.concatenate([problem.theta0[m], [0.0] * comp, np.zeros(len(cols))])
+                sol = least_squares(resid, v0, jac="2-point" if comp else jac, method="lm",
+                                    ftol=1e-12, xtol=1e-12, gtol=1e-12)
+                out.append(float(sol.fun @ sol.fun))
+    return np.asarray(out)
+
+
+def bench_diagnose_worker(spec: dict) -> tuple[dict, object]:
+    import numpy as np
+
+    out = {}
+    problem, sets = _diagnose_first_step(spec["data"])
+    n, n_ref = spec["n"], min(spec["n"], spec["ref_max"])
+    if spec["side"] == "pamid":
+        import pamid
+
+        def step():
+            return np.stack([f.sse for f in problem.evaluate(sets)])  # (sets, muscles)
+
+        timing, sse = _time_pamid(step, 3 if spec["quick"] else 5)
+        out.update(timing)
+        pamid.diagnose(spec["data"])  # compiles the later steps' shapes too
+        t = time.perf_counter()
+        d = pamid.diagnose(spec["data"])
+        out["end_to_end_s"] = time.perf_counter() - t
+        out["selected"] = d.selected
+        result = sse[:, :n_ref]
+    else:
+        seconds, lanes = _time_reference(lambda: _scipy_refits(problem, sets, n_ref), 1,
+                                         min_total_s=0.0)
+        out["reference_s"] = seconds * n / n_ref
+        folds = problem.n_folds + 1
+        result = lanes.reshape(len(sets), n_ref, folds)[:, :, 0]  # full-data lanes
+    return out, result
+
+
+def bench_diagnose(args, tmp: Path, timeout: float) -> list[dict]:
+    """`pamid diagnose` on a 100-muscle file: its first selection step (baseline and every
+    candidate refitted on all data and on each held-out fold, all muscles: one batched call)
+    beside the same refits as a SciPy loop; the whole diagnosis end to end as well."""
+    n = 100
+    ref_max = 10 if args.quick else 100
+    path = make_diagnose_data(n, tmp)
+    spec = {"bench": "diagnose", "n": n, "quick": args.quick, "ref_max": ref_max,
+            "data": str(path)}
+    res = {}
+    for side in ("pamid", "reference"):
+        say(f"  diagnose N={n} {side} …")
+        out_path = tmp / f"diagnose_{side}.npy"
+        res[side] = run_worker({**spec, "side": side, "result": str(out_path)}, timeout)
+        res[side]["result_path"] = str(out_path)
+    p, r = res["pamid"], res["reference"]
+    row = {
+        "name": "diagnose, first selection step",
+        "n": n,
+        "pamid_s": p.get("pamid_s"),
+        "reference": "scipy least_squares loop, same refits",
+        "reference_s": r.get("reference_s"),
+        "speedup": None,
+        "compile_s": p.get("compile_s"),
+        "first_call_s": p.get("first_s"),
+        "pamid_peak_rss_mb": p.get("peak_rss_mb"),
+        "reference_peak_rss_mb": r.get("peak_rss_mb"),
+        "reference_extrapolated": n > ref_max,
+        "diagnose_end_to_end_s": p.get("end_to_end_s"),
+        "diagnose_selected": p.get("selected"),
+    }
+    if row["pamid_s"] and row["reference_s"]:
+        row["speedup"] = row["reference_s"] / row["pamid_s"]
+    import numpy as np
+
+    pa, ra = Path(p["result_path"]), Path(r["result_path"])
+    if pa.is_file() and ra.is_file():
+        a, b = np.load(pa), np.load(ra)
+        row["max_diff"] = float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300)))
+    errors = [f"{s}: {x['error']}" for s, x in (("pamid", p), ("reference", r)) if "error" in x]
+    if errors:
+        row["error"] = "; ".join(errors)
+        say(f"    {row['error']}")
+    return [row]
+
+
+def log_log_slope(ns, ts):
+    import numpy as np
+
+    pts = [(n, t) for n, t in zip(ns, ts, strict=True) if n >= 100 and t and t > 0]
+    if len(pts) < 2:
+        return None
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small sizes, fewer repeats")
+    ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
+    ap.add_argument("--only", help="comma-separated benchmarks: "
+                    + ",".join([*(r[0] for r in ROWS), "diagnose"]))
+    ap.add_argument("--timeout", type=float, help="seconds per subprocess (900; quick 300)")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker:
+        print("RESULT " + json.dumps(worker(json.loads(args.worker))), flush=True)
+        return 0
+
+    mode = "quick" if args.quick else "full"
+    timeout = args.timeout or (300.0 if args.quick else 900.0)
+    chosen = [r for r in ROWS if not args.only or r[0] in args.only.split(",")]
+    out_text = sys.stderr if args.json else sys.stdout
+    t_start = time.perf_counter()
+
+    import jax
+    import numpy as np
+
+    import pamid
+
+    sys.path.insert(0, str(HERE))
+    from fit_batch import fmt_s, table  # the same formatting as fit_batch.py's tables
+
+    machine = {
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "platform": platform.platform(),
+        "cpus": os.cpu_count(),
+        "jax": jax.__version__,
+        "backend": jax.default_backend(),
+        "devices": [str(d) for d in jax.devices()],
+        "pamid": pamid.__version__,
+        "revision": _revision(),
+        "load_average_start": os.getloadavg()[0],
+    }
+    say(
+        f"pamid benchmarks ({mode}) — {machine['date']}; {machine['platform']}; "
+        f"{machine['cpus']} CPUs; JAX {machine['jax']} ({machine['backend']}, "
+        f"{len(machine['devices'])} device(s)); load {machine['load_average_start']:.2f}; "
+        f"pamid {machine['pamid']} at {machine['revision']}",
+        file=out_text,
+    )
+
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="pamid-run-") as tmp_name:
+        tmp = Path(tmp_name)
+        static_paths = {}
+        if any(r[3] == "static" for r in chosen):
+            say("static-fit data (fit_batch.make_data):")
+            static_paths = make_static_data(SIZES["static"][mode], tmp)
+        for bench, label, ref_label, key in chosen:
+            for n in SIZES[key][mode]:
+                spec = {
+                    "bench": bench,
+                    "n": n,
+                    "quick": args.quick,
+                    "ref_max": REF_MAX[key][mode],
+                    "mcmc_steps": MCMC_STEPS[mode],
+                    "data": str(static_paths.get(n, "")),
+                }
+                res = {}
+                for side in ("pamid", "reference"):
+                    if side == "pamid" and bench == "static_curve_fit":
+                        res["pamid"] = next(  # the same pamid fit as the row above
+                            (r["_pamid"] for r in rows if r["bench"] == "static" and r["n"] == n),
+                            None,
+                        )
+                        if res["pamid"] is not None:
+                            continue
+                    path = tmp / f"{bench}_{n}_{side}.npy"
+                    say(f"  {bench} N={n} {side} …")
+                    res[side] = run_worker({**spec, "side": side, "result": str(path)}, timeout)
+                    res[side]["result_path"] = str(path)
+                p, r = res["pamid"], res["reference"]
+                row = {
+                    "name": label,
+                    "n": n,
+                    "pamid_s": p.get("pamid_s"),
+                    "reference": ref_label,
+                    "reference_s": r.get("reference_s"),
+                    "speedup": None,
+                    "compile_s": p.get("compile_s"),
+                    "first_call_s": p.get("first_s"),
+                    "pamid_peak_rss_mb": p.get("peak_rss_mb"),
+                    "reference_peak_rss_mb": r.get("peak_rss_mb"),
+                    "reference_extrapolated": n > REF_MAX[key][mode],
+                    "bench": bench,
+                    "_pamid": p,
+                }
+                if row["pamid_s"] and row["reference_s"]:
+                    row["speedup"] = row["reference_s"] / row["pamid_s"]
+                for k in ("samples_per_s", "ess_per_s", "tau_max_steps", "steps"):
+                    if k in p:
+                        row[f"pamid_{k}"] = p[k]
+                        row[f"reference_{k}"] = r.get(k)
+                if "converged" in p:
+                    row["pamid_converged"] = p["converged"]
+                pa, ra = Path(p.get("result_path", "")), Path(r.get("result_path", ""))
+                if pa.is_file() and ra.is_file():
+                    row["max_diff"] = compare(bench, np.load(pa), np.load(ra))
+                errors = [
+                    f"{s}: {x['error']}"
+                    for s, x in (("pamid", p), ("reference", r))
+                    if "error" in x
+                ]
+                if errors:
+                    row["error"] = "; ".join(errors)
+                    say(f"    {row['error']}")
+                rows.append(row)
+
+        diagnose = []
+        if not args.only or "diagnose" in args.only.split(","):
+            diagnose = bench_diagnose(args, tmp, timeout)
+    for row in rows:
+        row.pop("_pamid", None)
+        row.pop("bench", None)
+    rows.extend(diagnose)
+
+    # ---- the table ----
+    lines = []
+    for row in rows:
+        mark = "*" if row.get("reference_extrapolated") else ""
+        lines.append(
+            [
+                row["name"],
+                row["n"],
+                fmt_s(row["pamid_s"]),
+                fmt_s(row.get("compile_s")),
+                row["reference"],
+                fmt_s(row["reference_s"]) + mark,
+                f"{row['speedup']:.1f}×" if row.get("speedup") else "—",
+                f"{row['pamid_peak_rss_mb']:.0f}" if row.get("pamid_peak_rss_mb") else "—",
+                f"{row['reference_peak_rss_mb']:.0f}" if row.get("reference_peak_rss_mb") else "—",
+                f"{row['max_diff']:.1e}" if row.get("max_diff") is not None else "—",
+            ]
+        )
+    say("", file=out_text)
+    say(
+        table(
+            [
+                "benchmark",
+                "N",
+                "pamid",
+                "compile",
+                "reference",
+                "ref time",
+                "speedup",
+                "pamid MB",
+                "ref MB",
+                "max diff",
+            ],
+            lines,
+        ),
+        file=out_text,
+    )
+    say(
+        "  pamid = median warm call; compile = first call − warm call; * reference timed on "
+        "the first muscles and scaled linearly; MB = peak RSS of the subprocess (imports and "
+        "data included); max diff = largest relative difference of the fitted constants "
+        "(decays: |Δangle| in rad) on the reference's muscles.",
+        file=out_text,
+    )
+    for row in diagnose:
+        if row.get("diagnose_end_to_end_s"):
+            say(f"diagnose end to end (100 muscles, warm): {row['diagnose_end_to_end_s']:.2f} s; "
+                f"selected {', '.join(row['diagnose_selected']) or 'nothing'}", file=out_text)
+
+    mc = [r for r in rows if "pamid_ess_per_s" in r]
+    if mc:
+        say("", file=out_text)
+        say(
+            table(
+                [
+                    "mcmc",
+                    "N",
+                    "steps",
+                    "pamid samples/s",
+                    "pamid ESS/s",
+                    "emcee samples/s",
+                    "emcee ESS/s",
+                    "ESS/s ratio",
+                ],
+                [
+                    [
+                        r["name"],
+                        r["n"],
+                        r["pamid_steps"],
+                        f"{r['pamid_samples_per_s']:.3g}",
+                        f"{r['pamid_ess_per_s']:.3g}",
+                        f"{r['reference_samples_per_s']:.3g}"
+                        if r.get("reference_samples_per_s")
+                        else "—",
+                        f"{r['reference_ess_per_s']:.3g}" if r.get("reference_ess_per_s") else "—",
+                        f"{r['pamid_ess_per_s'] / r['reference_ess_per_s']:.1f}×"
+                        if r.get("reference_ess_per_s")
+                        else "—",
+                    ]
+                    for r in mc
+                ],
+            ),
+            file=out_text,
+        )
+        say(
+            "  ESS: per muscle the smallest over the constants and σ (emcee's estimator), "
+            "summed over muscles; samples = walkers × steps.",
+            file=out_text,
+        )
+
+    slopes = []
+    for bench, label, ref_label, _ in chosen:
+        sel = [r for r in rows if r["name"] == label and r["reference"] == ref_label]
+        for who, key in (("pamid", "pamid_s"), ("reference", "reference_s")):
+            if who == "pamid" and bench == "static_curve_fit":
+                continue
+            use = [
+                r
+                for r in sel
+                if r["n"] >= 100 and (who == "pamid" or not r["reference_extrapolated"])
+            ]
+            s = log_log_slope([r["n"] for r in use], [r[key] for r in use])
+            if s is not None:
+                name = label if who == "pamid" else ref_label
+                flag = "SUPERLINEAR" if s > SLOPE_FLAG else ""
+                span = f"{min(r['n'] for r in use)}–{max(r['n'] for r in use)}"
+                slopes.append([name, span, f"{s:.2f}", flag])
+    if slopes:
+        say("", file=out_text)
+        say(
+            table(["cost growth (log-log slope, N ≥ 100)", "N", "slope", "flag"], slopes),
+            file=out_text,
+        )
+        say(
+            f"  flagged when the slope exceeds {SLOPE_FLAG}; references only over the N they "
+            "were actually run at (scaled ones grow linearly by construction).",
+            file=out_text,
+        )
+
+    machine["load_average_end"] = os.getloadavg()[0]
+    machine["total_s"] = time.perf_counter() - t_start
+    say(
+        f"\ntotal {machine['total_s']:.0f} s; load average at end "
+        f"{machine['load_average_end']:.2f}",
+        file=out_text,
+    )
+    if args.json:
+        print(json.dumps(rows, indent=1), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
