@@ -9,24 +9,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.optimize
+from sarosi_np import force_np, jacobian_np
 
 import pamid
 from pamid._fit import _gauss_newton as gn
 from pamid._fit._least_squares import _solve_batch, solve
 from pamid._fit._spec import SAROSI
 from pamid._fit._variable_projection import sarosi_variable_projection_start
-
-
-def force_np(theta, p, k):
-    """Sárosi eq. 2.1 in NumPy."""
-    a1, a2, a3, a4, a5, a6 = theta
-    return (a1 * p + a2) * np.exp(a3 * k) + a4 * k * p + a5 * p + a6
-
-
-def jacobian_np(theta, p, k):
-    a1, a2, a3 = theta[:3]
-    e = np.exp(a3 * k)
-    return np.stack([p * e, e, (a1 * p + a2) * k * e, k * p, p, np.ones_like(p)], axis=-1)
 
 
 def design(n_per_pressure=30, pressures_bar=(1.0, 2.0, 3.0, 4.0, 5.0), kappa_max=25.0):

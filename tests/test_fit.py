@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import scipy.optimize
 import scipy.stats
+from sarosi_np import force_np, jacobian_np
 
 import pamid
 
@@ -30,16 +31,6 @@ N_PARAMS = 6
 # ----------------------------------------------------------------------------------------
 
 
-def force_np(theta, p, k):
-    a1, a2, a3, a4, a5, a6 = theta
-    return (a1 * p + a2) * np.exp(a3 * k) + a4 * k * p + a5 * p + a6
-
-
-def jacobian_np(theta, p, k):
-    """∂F/∂(a1…a6), analytic."""
-    a1, a2, a3 = theta[:3]
-    e = np.exp(a3 * k)
-    return np.stack([p * e, e, (a1 * p + a2) * k * e, k * p, p, np.ones_like(p)], axis=-1)
 
 
 def scipy_fit(group, theta0, bounds=(-np.inf, np.inf)):

@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.integrate
+from sarosi_np import force_np
 
 import pamid
 
@@ -24,10 +25,6 @@ def force_by_hand(p, k):
     """Eq. 2.1 in plain Python."""
     return (A1 * p + A2) * math.exp(A3 * k) + A4 * k * p + A5 * p + A6
 
-
-def force_np(theta, p, k):
-    a1, a2, a3, a4, a5, a6 = theta
-    return (a1 * p + a2) * np.exp(a3 * k) + a4 * k * p + a5 * p + a6
 
 
 # ----------------------------------------------------------------------------------------

@@ -184,9 +184,18 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress) -> Diagnosis:
                           strict=True))}
         for i, (m, e) in enumerate(zip(bench.muscles, intervals(problem, final), strict=True))
     ]
+    return build_diagnosis(bench.path, "bench", spec.name, list(bench.muscles), result,
+                           before, after, constants, table, _unexplained(after))
+
+
+def build_diagnosis(path, kind, model, groups, result, before, after, constants, table,
+                    unexplained) -> Diagnosis:
+    """The :class:`Diagnosis` of a forward selection (``forward_select``'s result) and the
+    residual analyses before and after, for bench and decay files alike."""
+    base, final = result["baseline"], result["final"]
     return Diagnosis(
-        path=str(bench.path), kind="bench", model=spec.name, n=int(np.sum(base.n)),
-        n_groups=len(bench.muscles), groups=list(bench.muscles),
+        path=str(path), kind=kind, model=model, n=int(np.sum(base.n)),
+        n_groups=len(groups), groups=groups,
         rmse_before=base.rmse, rmse_after=final.rmse,
         max_error_before=before["max_abs"], max_error_after=after["max_abs"],
         cv_rmse_before=base.cv_rmse, cv_rmse_after=final.cv_rmse,
@@ -195,7 +204,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress) -> Diagnosis:
         steps=[{**{k: v for k, v in s.items() if k != "candidates"},
                 "candidates": _candidate_rows(s["candidates"])} for s in result["steps"]],
         constants=constants, residual_before=before, residual_after=after,
-        unexplained=_unexplained(after), table=table,
+        unexplained=unexplained, table=table,
     )
 
 

@@ -38,7 +38,7 @@ def _set_fit(model_fit) -> SetFit:
 def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
     from .._dynamics._coulomb import fit_decay_models
     from .._dynamics._decay import analyze_decays
-    from ._api import Diagnosis, _candidate_rows, _unexplained, analyse_residual
+    from ._api import _unexplained, analyse_residual, build_diagnosis
 
     if inertia_kg_m2 is None or not inertia_kg_m2 > 0:
         raise ValueError(f"{data.path}: a decay file needs the arm's moment of inertia: "
@@ -74,19 +74,9 @@ def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
                           "base": {k: float(f.params[k]) for k in
                                    ("zeta", "omega_n_rad_s", "equilibrium_rad")
                                    if k in f.params}})
-    return Diagnosis(
-        path=str(data.path), kind="decay", model="linear oscillator (Cullinan eq. 8–11)",
-        n=int(np.sum(base.n)), n_groups=len(data.trials), groups=list(data.trials),
-        rmse_before=base.rmse, rmse_after=final.rmse,
-        max_error_before=before["max_abs"], max_error_after=after["max_abs"],
-        cv_rmse_before=base.cv_rmse, cv_rmse_after=final.cv_rmse,
-        selected=result["selected"], dropped=result["dropped"],
-        candidates=_candidate_rows(result["steps"][0]["candidates"]),
-        steps=[{**{k: v for k, v in s.items() if k != "candidates"},
-                "candidates": _candidate_rows(s["candidates"])} for s in result["steps"]],
-        constants=constants, residual_before=before, residual_after=after,
-        unexplained=_unexplained(after, runs_test_applies=quantum == 0.0), table=table,
-    )
+    return build_diagnosis(data.path, "decay", "linear oscillator (Cullinan eq. 8–11)",
+                           list(data.trials), result, before, after, constants, table,
+                           _unexplained(after, runs_test_applies=quantum == 0.0))
 
 
 def _long_table(data, base: SetFit, final: SetFit) -> pd.DataFrame:
