@@ -204,11 +204,35 @@ def _cmd_demo(args) -> int:
     for key, value in damping.items():
         print(f"  {key:>22s} = {value:.6g}")
 
+    # Closing the loop: what does eq. 2.1 miss in these data, and what does adding it gain?
+    from ._diagnose._api import diagnose
+    from ._diagnose._report import plot_residuals
+
+    diag = diagnose(bench)
+    print("\nClosing the loop (pamid diagnose): the residual of eq. 2.1 against every covariate, "
+          "each candidate effect refitted:")
+    for row in diag.candidates[:4]:
+        print(f"  {row['effect']:<26} ΔBIC {row['delta_bic']:>9.1f}   CV RMSE "
+              f"{row['cv_rmse']:.3f} N   {'significant' if row['significant'] else ''}")
+    print(f"  selected: {', '.join(diag.selected) or 'nothing'}; RMSE {diag.rmse_before:.3f} → "
+          f"{diag.rmse_after:.3f} N, max error {diag.max_error_before:.2f} → "
+          f"{diag.max_error_after:.2f} N; unexplained: {', '.join(diag.unexplained) or 'nothing'}")
+    for name, consts in diag.constants[0]["effects"].items():
+        for pname, c in consts.items():
+            lo, hi = c["ci95"]
+            print(f"  {name} {pname} = {c['value']:.4g} {c['unit']} [{lo:.4g}, {hi:.4g}]")
+
     out.mkdir(parents=True, exist_ok=True)
     plots = _write_plots(bench, result, out, 1)
+    plot_residuals(diag, out / "diagnosis_residuals.png")
+    plots.append("diagnosis_residuals.png")
     summary = result.to_dict()
     summary["source"] = str(path)
     summary["hysteresis_damping_400kPa_50kg"] = damping
+    summary["diagnosis"] = {k: v for k, v in diag.to_dict().items()
+                            if k in ("rmse_before", "rmse_after", "max_error_before",
+                                     "max_error_after", "selected", "candidates",
+                                     "constants", "unexplained")}
     summary["published_table_3_1"] = {k: {"value": v["value"], "ci95": list(v["ci95"])}
                                       for k, v in TABLE_3_1.items()}
     summary["plots"] = plots
