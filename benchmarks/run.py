@@ -141,17 +141,19 @@ def _static_data(path, n_ref):
 
     import pamid
 
-    z = np.load(path)
+    # An NpzFile reads (and decompresses) an array at every z[key]: read each one once.
+    with np.load(path) as z:
+        x0, x1, y, w, curve = (z[k] for k in ("x0", "x1", "y", "w", "curve"))
     data = pamid.FitData(
-        x=(jnp.asarray(z["x0"]), jnp.asarray(z["x1"])),
-        y=jnp.asarray(z["y"]),
-        w=jnp.asarray(z["w"]),
-        curve=jnp.asarray(z["curve"]),
+        x=(jnp.asarray(x0), jnp.asarray(x1)),
+        y=jnp.asarray(y),
+        w=jnp.asarray(w),
+        curve=jnp.asarray(curve),
     )
     groups = []
-    for i in range(min(n_ref, z["y"].shape[0])):
-        keep = z["w"][i] > 0
-        groups.append(((z["x0"][i, keep], z["x1"][i, keep]), z["y"][i, keep]))
+    for i in range(min(n_ref, y.shape[0])):
+        keep = w[i] > 0
+        groups.append(((x0[i, keep], x1[i, keep]), y[i, keep]))
     return data, groups
 
 
