@@ -476,6 +476,26 @@ def compare(bench, a, b):
     return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300)))
 
 
+def _row(name, n, reference, p, r, extrapolated) -> dict:
+    """One table row from the two workers' results (``p``: pamid's, ``r``: the reference's)."""
+    row = {
+        "name": name,
+        "n": n,
+        "pamid_s": p.get("pamid_s"),
+        "reference": reference,
+        "reference_s": r.get("reference_s"),
+        "speedup": None,
+        "compile_s": p.get("compile_s"),
+        "first_call_s": p.get("first_s"),
+        "pamid_peak_rss_mb": p.get("peak_rss_mb"),
+        "reference_peak_rss_mb": r.get("peak_rss_mb"),
+        "reference_extrapolated": extrapolated,
+    }
+    if row["pamid_s"] and row["reference_s"]:
+        row["speedup"] = row["reference_s"] / row["pamid_s"]
+    return row
+
+
 def make_diagnose_data(n: int, tmp: Path) -> Path:
     """A bench file of ``n`` muscles (Table 3-1 × (1 + 0.03·normal)) hiding a hysteresis loop
     of 9 N at 3 bar, so that the diagnosis has something to find and refit."""
@@ -598,23 +618,9 @@ def bench_diagnose(args, tmp: Path, timeout: float) -> list[dict]:
         res[side] = run_worker({**spec, "side": side, "result": str(out_path)}, timeout)
         res[side]["result_path"] = str(out_path)
     p, r = res["pamid"], res["reference"]
-    row = {
-        "name": "diagnose, first selection step",
-        "n": n,
-        "pamid_s": p.get("pamid_s"),
-        "reference": "scipy least_squares loop, same refits",
-        "reference_s": r.get("reference_s"),
-        "speedup": None,
-        "compile_s": p.get("compile_s"),
-        "first_call_s": p.get("first_s"),
-        "pamid_peak_rss_mb": p.get("peak_rss_mb"),
-        "reference_peak_rss_mb": r.get("peak_rss_mb"),
-        "reference_extrapolated": n > ref_max,
-        "diagnose_end_to_end_s": p.get("end_to_end_s"),
-        "diagnose_selected": p.get("selected"),
-    }
-    if row["pamid_s"] and row["reference_s"]:
-        row["speedup"] = row["reference_s"] / row["pamid_s"]
+    row = _row("diagnose, first selection step", n, "scipy least_squares loop, same refits",
+               p, r, n > ref_max)
+    row.update(diagnose_end_to_end_s=p.get("end_to_end_s"), diagnose_selected=p.get("selected"))
     import numpy as np
 
     pa, ra = Path(p["result_path"]), Path(r["result_path"])
@@ -715,23 +721,8 @@ def main(argv=None) -> int:
                     res[side] = run_worker({**spec, "side": side, "result": str(path)}, timeout)
                     res[side]["result_path"] = str(path)
                 p, r = res["pamid"], res["reference"]
-                row = {
-                    "name": label,
-                    "n": n,
-                    "pamid_s": p.get("pamid_s"),
-                    "reference": ref_label,
-                    "reference_s": r.get("reference_s"),
-                    "speedup": None,
-                    "compile_s": p.get("compile_s"),
-                    "first_call_s": p.get("first_s"),
-                    "pamid_peak_rss_mb": p.get("peak_rss_mb"),
-                    "reference_peak_rss_mb": r.get("peak_rss_mb"),
-                    "reference_extrapolated": n > REF_MAX[key][mode],
-                    "bench": bench,
-                    "_pamid": p,
-                }
-                if row["pamid_s"] and row["reference_s"]:
-                    row["speedup"] = row["reference_s"] / row["pamid_s"]
+                row = _row(label, n, ref_label, p, r, n > REF_MAX[key][mode])
+                row.update(bench=bench, _pamid=p)
                 for k in ("samples_per_s", "ess_per_s", "tau_max_steps", "steps"):
                     if k in p:
                         row[f"pamid_{k}"] = p[k]

@@ -72,7 +72,7 @@ from pamid._control._valve import (  # noqa: E402
     sonic_conductance_from_nominal_flow,
 )
 from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
-from pamid._models._sarosi import TABLE_3_1  # noqa: E402
+from pamid._models._sarosi import table_3_1_fit_json  # noqa: E402
 from pamid._models._volume import PamVolume  # noqa: E402
 
 NAME = "positioning"
@@ -589,16 +589,7 @@ def sensitivity(out: Path) -> dict:
 
 
 def draws_study(out: Path, n: int, seed: int) -> dict:
-    fit = {
-        "model": "sarosi",
-        "muscles": [
-            {
-                "params": {
-                    k: {"value": v["value"], "ci95": list(v["ci95"])} for k, v in TABLE_3_1.items()
-                }
-            }
-        ],
-    }
+    fit = table_3_1_fit_json()
     muscle, se = sarosi_from_fit_json(fit)
     draws = wald_draws(jax.random.key(seed), muscle, se, n)
     ctrl = SlidingModeController.for_encoder(LINEAR_RES, LINEAR_GRADIENT)

@@ -139,6 +139,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "sarosi_stiffness": ("._models._sarosi", "sarosi_stiffness"),
     "sarosi_stiffness_eq_2_9": ("._models._sarosi", "sarosi_stiffness_eq_2_9"),
     "table_3_1": ("._models._sarosi", "table_3_1"),
+    "table_3_1_fit_json": ("._models._sarosi", "table_3_1_fit_json"),
     "PamVolume": ("._models._volume", "PamVolume"),
     "braid_volume_mm3": ("._models._volume", "braid_volume_mm3"),
     "closed_system_pressure_kPa": ("._models._volume", "closed_system_pressure_kPa"),
@@ -316,6 +317,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._models._sarosi import sarosi_stiffness as sarosi_stiffness
     from ._models._sarosi import sarosi_stiffness_eq_2_9 as sarosi_stiffness_eq_2_9
     from ._models._sarosi import table_3_1 as table_3_1
+    from ._models._sarosi import table_3_1_fit_json as table_3_1_fit_json
     from ._models._volume import PamVolume as PamVolume
     from ._models._volume import braid_volume_mm3 as braid_volume_mm3
     from ._models._volume import closed_system_pressure_kPa as closed_system_pressure_kPa

@@ -163,7 +163,7 @@ def _cmd_demo(args) -> int:
     from ._fit._batch import pack
     from ._io import write_text_atomic
     from ._models._hysteresis import hysteresis_damping
-    from ._models._sarosi import TABLE_3_1, TABLE_3_1_L0_MM, Sarosi
+    from ._models._sarosi import TABLE_3_1, TABLE_3_1_L0_MM, Sarosi, table_3_1_fit_json
     from ._units import KPA_PER_BAR
 
     out = Path(args.out)
@@ -233,8 +233,7 @@ def _cmd_demo(args) -> int:
                             if k in ("rmse_before", "rmse_after", "max_error_before",
                                      "max_error_after", "selected", "candidates",
                                      "constants", "unexplained")}
-    summary["published_table_3_1"] = {k: {"value": v["value"], "ci95": list(v["ci95"])}
-                                      for k, v in TABLE_3_1.items()}
+    summary["published_table_3_1"] = table_3_1_fit_json()["muscles"][0]["params"]
     summary["plots"] = plots
     write_text_atomic(out / "demo.json", json.dumps(summary, indent=2) + "\n")
     print(f"\nPlots and demo.json written to {out}/: {', '.join(plots)}")

@@ -149,3 +149,21 @@ def refuse_overwrite_input(
                 f"refusing to write {out}: it is the input file {inp_path}; "
                 "choose another output path"
             )
+
+
+def json_ready(value):
+    """``value`` with NumPy scalars and arrays made plain Python, recursively, and every
+    non-finite float made None (JSON has no NaN)."""
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {k: json_ready(x) for k, x in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_ready(x) for x in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    return value

@@ -223,3 +223,16 @@ def test_decay_needs_inertia(tmp_path, capsys):
 
     assert main(["diagnose", str(_decays(tmp_path, 1))]) == 2
     assert "--inertia" in capsys.readouterr().err
+
+
+def test_decay_file_recognised_without_a_trial_column(tmp_path, capsys):
+    from pamid._cli import main
+    from pamid._diagnose._api import _is_decay_file
+
+    frame = pd.read_csv(_decays(tmp_path, 1, n_trials=1))
+    path = tmp_path / "one_decay.csv"
+    frame.drop(columns=["trial"]).to_csv(path, index=False)
+    assert _is_decay_file(path)
+    assert not _is_decay_file(_bench(tmp_path, ()))
+    assert main(["diagnose", str(path)]) == 2  # read as a decay file: it asks for J
+    assert "--inertia" in capsys.readouterr().err

@@ -48,7 +48,7 @@ from pamid._control._valve import (
     valve_mass_flows_kg_s,
     valve_opening,
 )
-from pamid._models._sarosi import TABLE_3_1
+from pamid._models._sarosi import table_3_1_fit_json
 
 LINEAR = SlidingModeController(0.35, 0.015, 2.0)
 DURATION_S = 3.0  # one length for every closed-loop run below: one compilation per shape
@@ -192,16 +192,7 @@ def test_quantized_error_bounded_by_one_count(single_runs):
 
 
 def test_batch_equals_loop():
-    fit = {
-        "model": "sarosi",
-        "muscles": [
-            {
-                "params": {
-                    k: {"value": v["value"], "ci95": list(v["ci95"])} for k, v in TABLE_3_1.items()
-                }
-            }
-        ],
-    }
+    fit = table_3_1_fit_json()
     muscle, se = sarosi_from_fit_json(fit)
     draws = wald_draws(jax.random.key(3), muscle, se, 3)
     batch = simulate_positioning(linear_rig(draws), LINEAR, 15.0, duration_s=DURATION_S)

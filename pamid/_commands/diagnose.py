@@ -1,7 +1,7 @@
 """``pamid diagnose DATA``: what the model misses, named, modelled, before and after.
 
 Bench files are diagnosed with the static model (``--model sarosi|cullinan``); decay files,
-recognised by their columns (``trial`` with ``angle_rad`` or ``angle_deg``), with the
+recognised by their columns (``angle_rad`` or ``angle_deg``, optional ``trial``), with the
 oscillator model, which needs ``--inertia`` (kg·m²). ``--json`` prints exactly one JSON
 object; ``--out DIR`` writes diagnosis.json, report.txt and residual plots (PNG). Progress
 goes to stderr.
@@ -25,8 +25,8 @@ def register(subparsers) -> None:
                     "covariate:<column>), select by BIC and cross-validated error, and report "
                     "the error before and after.",
     )
-    diag.add_argument("data", help="bench file (CSV or Parquet) or decay file (trial, time_s, "
-                                   "angle_rad|angle_deg)")
+    diag.add_argument("data", help="bench file (CSV or Parquet) or decay file (time_s, "
+                                   "angle_rad|angle_deg, optional trial)")
     diag.add_argument("--model", default="sarosi", choices=["sarosi", "cullinan"],
                       help="static model for bench files (default sarosi)")
     diag.add_argument("--inertia", type=float, dest="inertia_kg_m2", metavar="J",

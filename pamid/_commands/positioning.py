@@ -109,7 +109,7 @@ def cmd_positioning(args) -> int:
     )
     from .._control._sliding_mode import LINEAR_GRADIENT, SlidingModeController, plain_switching
     from .._io import refuse_overwrite_input, write_text_atomic
-    from .._models._sarosi import TABLE_3_1, table_3_1
+    from .._models._sarosi import table_3_1, table_3_1_fit_json
 
     quiet = args.json
     t_start = time.perf_counter()
@@ -127,17 +127,7 @@ def cmd_positioning(args) -> int:
         source = f"{args.fit} (muscle {args.muscle})"
     else:
         muscle = table_3_1()
-        fit = {
-            "model": "sarosi",
-            "muscles": [
-                {
-                    "params": {
-                        k: {"value": v["value"], "ci95": list(v["ci95"])}
-                        for k, v in TABLE_3_1.items()
-                    }
-                }
-            ],
-        }
+        fit = table_3_1_fit_json()
         _, se = sarosi_from_fit_json(fit)
         source = "Sárosi Table 3-1 (DMSP-20-400N constants, taken for the DMSP-20-200N)"
 

@@ -17,13 +17,13 @@ The procedure (issue #5):
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .._io import json_ready
 from ._residual import covariate_dependence, ljung_box, runs_test
 from ._select import forward_select
 
@@ -64,20 +64,7 @@ class Diagnosis:
     table: pd.DataFrame = dataclasses.field(repr=False, default=None)
 
     def to_dict(self) -> dict:
-        def plain(v):
-            if isinstance(v, dict):
-                return {k: plain(x) for k, x in v.items()}
-            if isinstance(v, (list, tuple)):
-                return [plain(x) for x in v]
-            if isinstance(v, (np.floating, float)):
-                return float(v) if math.isfinite(v) else None
-            if isinstance(v, np.integer):
-                return int(v)
-            if isinstance(v, np.bool_):
-                return bool(v)
-            return v
-
-        return plain({
+        return json_ready({
             "file": self.path, "kind": self.kind, "model": self.model, "n": self.n,
             "groups": self.groups,
             "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
@@ -133,9 +120,9 @@ def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
     """Diagnose a bench or decay file (a path, a :class:`~pamid.BenchData` or a
     :class:`~pamid.DecayData`).
 
-    Decay files are recognised by their columns (``trial`` with ``angle_rad`` or
-    ``angle_deg``) and diagnosed with the oscillator model; they need ``inertia_kg_m2``
-    for the friction torque in N·m.
+    Decay files are recognised by their columns (``angle_rad`` or ``angle_deg``, with
+    ``time_s`` and optionally ``trial``) and diagnosed with the oscillator model; they need
+    ``inertia_kg_m2`` for the friction torque in N·m.
     """
     from .._data._bench import BenchData, load_bench
     from .._dynamics._decay_data import DecayData, load_decay
@@ -152,17 +139,22 @@ def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
 
 
 def _is_decay_file(path: Path) -> bool:
-    from .._data._bench import _read_bytes
+    """A decay file names its angle (``angle_rad`` or ``angle_deg``); a bench file never does.
+    Only the header is read; a file that cannot be read is left to ``load_bench`` to report."""
+    from .._data._bench import PARQUET_SUFFIXES
 
-    if path.suffix.lower() in (".parquet", ".pq"):
-        import pyarrow.parquet as pq
+    try:
+        if path.suffix.lower() in PARQUET_SUFFIXES:
+            import pyarrow.parquet as pq
 
-        names = pq.read_schema(path).names
-    else:
-        head = _read_bytes(path, str(path))[:4096].decode("utf-8", "replace")
-        first = head.splitlines()[0] if head else ""
-        names = [c.strip().strip('"') for c in first.replace(";", ",").split(",")]
-    return "trial" in names and ("angle_rad" in names or "angle_deg" in names)
+            names = pq.read_schema(path).names
+        else:
+            with open(path, "rb") as f:
+                first = f.readline(65536).decode("utf-8-sig", "replace")
+            names = [c.strip().strip('"') for c in first.replace(";", ",").split(",")]
+    except Exception:
+        return False
+    return "angle_rad" in names or "angle_deg" in names
 
 
 def _diagnose_bench(bench, model: str, n_folds: int, progress) -> Diagnosis:

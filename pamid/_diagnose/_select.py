@@ -127,7 +127,7 @@ def forward_select(
                          "delta_bic": d_bic, "cv_rmse": fit.cv_rmse, "cv_p_value": p_cv,
                          "rmse": fit.rmse, "significant": significant, "fit": fit})
         rows.sort(key=lambda r: r["delta_bic"])
-        choice = _choose(rows, covariate_of)
+        choice = _choose(rows)
         alternatives = [] if choice is None else [
             r["effect"] for r in rows
             if r is not choice and r["significant"]
@@ -164,7 +164,7 @@ def forward_select(
             "steps": steps, "dropped": dropped}
 
 
-def _choose(rows: list[dict], covariate_of: dict[str, str]) -> dict | None:
+def _choose(rows: list[dict]) -> dict | None:
     significant = [r for r in rows if r["significant"]]
     library = [r for r in significant if not r["effect"].startswith("covariate:")]
     if library:

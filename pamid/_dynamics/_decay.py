@@ -101,6 +101,7 @@ import optimistix as optx
 import scipy.linalg
 
 from .._errors import BenchDataError
+from .._io import json_ready as _plain
 from .._sim._oscillator import DampedOscillator, oscillator_response
 
 __all__ = [
@@ -510,20 +511,6 @@ class DecrementEstimate:
 
     def to_dict(self) -> dict:
         return {k: _plain(v) for k, v in self.__dict__.items()}
-
-
-def _plain(v):
-    if isinstance(v, dict):
-        return {k: _plain(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return [_plain(x) for x in v]
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, (int, np.integer)):
-        return int(v)
-    if isinstance(v, (float, np.floating)):
-        return float(v) if np.isfinite(v) else None
-    return v
 
 
 def _derived(delta, delta_se, delta_dof, half_period, half_period_se, time_dof, inertia):

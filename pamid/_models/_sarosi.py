@@ -156,3 +156,10 @@ TABLE_3_1_L0_MM = 400.0  # nominal length of the DMSP-20-400N muscle of Table 3-
 def table_3_1() -> Sarosi:
     """The constants of Sárosi Table 3-1 (DMSP-20-400N, l0 = 400 mm) as a :class:`Sarosi`."""
     return Sarosi(*(TABLE_3_1[name]["value"] for name in PARAM_NAMES))
+
+
+def table_3_1_fit_json() -> dict:
+    """Table 3-1 in the layout of ``pamid fit --json`` (one muscle; value and 95 % interval
+    of each constant), for whatever reads a fit: ``--fit`` options, comparisons."""
+    params = {k: {"value": v["value"], "ci95": list(v["ci95"])} for k, v in TABLE_3_1.items()}
+    return {"model": "sarosi", "muscles": [{"params": params}]}
