@@ -67,9 +67,29 @@ def run_scenario(name, effects, protocol, seed, folder):
             "unexplained": d.unexplained, "seconds": time.perf_counter() - t0}
 
 
+def false_positives(n: int) -> dict:
+    """Diagnose ``n`` clean virtual-bench files (no hidden effect; seeds 0 … n−1)."""
+    selected, unexplained = {}, {}
+    proto = pamid.SarosiProtocol(min_force_N=10.0)
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(n):
+            frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.table_3_1(), proto)
+            path = Path(tmp) / f"control_{seed}.csv"
+            frame.to_csv(path, index=False)
+            d = pamid.diagnose(path)
+            if d.selected:
+                selected[seed] = d.selected
+            if d.unexplained:
+                unexplained[seed] = d.unexplained
+    return {"n": n, "n_selected": len(selected), "n_unexplained": len(unexplained),
+            "selected": selected, "unexplained": unexplained}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "experiments" / "out" / "close_the_loop"))
+    ap.add_argument("--control-seeds", type=int, default=100,
+                    help="clean data sets (seeds 0 … N−1) for the false-positive count")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -91,6 +111,11 @@ def main(argv=None) -> int:
               f"{r['max_error_before_N']:>10.2f} {r['max_error_after_N']:>7.2f}  "
               f"{', '.join(r['unexplained']) or '—'}")
     summary = {"noise_level_N": NOISE_N, "scenarios": rows}
+    if args.control_seeds:
+        summary["control"] = false_positives(args.control_seeds)
+        c = summary["control"]
+        print(f"\nControl: {c['n_selected']} of {c['n']} clean data sets (seeds 0–{c['n'] - 1}) "
+              f"selected an effect, {c['n_unexplained']} listed something as unexplained")
     if MARTENS.is_file():
         d = pamid.diagnose(MARTENS)
         report = format_report(d)
