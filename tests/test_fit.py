@@ -493,3 +493,33 @@ def test_chunked_lanes_equal_one_call(small_bench, monkeypatch):
     np.testing.assert_allclose(chunked.ci95, whole.ci95, rtol=1e-12)
     np.testing.assert_allclose(chunked.ci95_profile, whole.ci95_profile, rtol=1e-10)
     assert (chunked.converged == whole.converged).all()
+
+
+def test_chunks_on_worker_threads_equal_chunks_in_turn(monkeypatch):
+    """On the CPU the chunks of a batch run on one thread per core; the lanes come back
+    in order and equal a run of the same chunks one after another, also on a device picked
+    with ``use_devices`` (a per-thread setting that the workers must be given)."""
+    import pamid._fit._batch as batch
+
+    calls = []
+
+    @jax.jit
+    def fn(a, b):
+        return a * 2.0 + b.sum(-1), jnp.cumsum(b, -1)
+
+    def spy(a, b):
+        calls.append(a.shape[0])
+        return fn(a, b)
+
+    rng = np.random.default_rng(3)
+    a, b = jnp.asarray(rng.standard_normal(11)), jnp.asarray(rng.standard_normal((11, 7)))
+    monkeypatch.setattr(batch, "_cpu_workers", lambda: 3)
+    threaded = batch.map_lanes(spy, a, b, chunk=4)  # compiles in three threads at once
+    monkeypatch.setattr(batch, "_cpu_workers", lambda: 1)
+    serial = batch.map_lanes(spy, a, b, chunk=4)
+    with pamid.use_devices(jax.local_devices()[:1]):
+        pinned = batch.map_lanes(spy, a, b, chunk=4)
+    for got in (serial, threaded, pinned):
+        np.testing.assert_array_equal(got[0], np.asarray(a) * 2.0 + np.asarray(b).sum(-1))
+        np.testing.assert_array_equal(got[1], np.cumsum(np.asarray(b), -1))
+    assert calls == [4] * 9  # 3 chunks (4, 4, and 3 padded to 4) each time

@@ -9,6 +9,9 @@ repeated rows.
 
 from __future__ import annotations
 
+import concurrent.futures
+import functools
+import os
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -103,25 +106,74 @@ def map_lanes(fn, *arrays, chunk: int | None = None):
     devices = lane_devices()
     if len(devices) > 1:
         return _map_lanes_sharded(fn, arrays, n, chunk, devices)
-    if chosen_devices() is not None:  # one device picked with use_devices: run there
-        with jax.default_device(devices[0]):
-            return _map_lanes_one_device(fn, arrays, n, chunk)
-    return _map_lanes_one_device(fn, arrays, n, chunk)
+    # One device picked with use_devices or jax.default_device: run there, named in every
+    # worker thread (jax.default_device is a per-thread setting).
+    pinned = chosen_devices() is not None or jax.config.jax_default_device is not None
+    device = devices[0] if pinned else None
+    workers = _cpu_workers() if devices[0].platform == "cpu" else 1
+    return _map_lanes_one_device(fn, arrays, n, chunk, device, workers)
 
 
-def _map_lanes_one_device(fn, arrays, n, chunk):
+def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
     import jax
 
     if n <= chunk:
         return jax.tree.map(np.asarray, fn(*arrays))
-    outputs = []
-    for start in range(0, n, chunk):
+    starts = range(0, n, chunk)
+
+    def run(start):
         stop = min(start + chunk, n)
-        idx = np.minimum(np.arange(start, start + chunk), stop - 1)
-        part = jax.tree.map(lambda a: a[idx], arrays)
-        out = jax.tree.map(np.asarray, fn(*part))
-        outputs.append(jax.tree.map(lambda a: a[: stop - start], out))
+        # Contiguous slices (a gather of the same lanes took 2.6 ms per chunk of 512 lanes
+        # of 300 samples, the slice 0.7 ms); the last chunk is padded by its final lane.
+        part = jax.tree.map(lambda a: _lanes(a, start, stop, chunk), arrays)
+        if device is None:
+            out = fn(*part)
+        else:
+            with jax.default_device(device):
+                out = fn(*part)
+        return jax.tree.map(lambda a: np.asarray(a)[: stop - start], out)
+
+    workers = min(len(starts), workers)
+    if workers > 1:
+        # On the CPU as NumPy (no copy): slicing a JAX array is an operation queued on the
+        # device behind the running chunks (20 chunks: 128 ms from JAX arrays, 101 ms from
+        # NumPy views).
+        arrays = jax.tree.map(np.asarray, arrays)
+        # A CPU device runs pamid's small kernels on one core per call, and calls made from
+        # several threads run side by side (JAX releases the GIL while XLA runs): the Sárosi
+        # solve of 10,000 muscles of 300 samples in chunks of 512 took 154 ms from one
+        # thread and 92 ms from two, on two cores.
+        outputs = list(_pool(workers).map(run, starts))
+    else:
+        outputs = [run(start) for start in starts]
     return jax.tree.map(lambda *xs: np.concatenate(xs, axis=0), *outputs)
+
+
+def _lanes(a, start, stop, size):
+    """Lanes start…stop−1 of ``a``, padded to ``size`` lanes by repeating the last."""
+    part = a[start:stop]
+    if stop - start == size:
+        return part
+    pad = part[-1:]
+    reps = (size - (stop - start),) + (1,) * (part.ndim - 1)
+    xp = np if isinstance(part, np.ndarray) else jnp
+    return xp.concatenate([part, xp.tile(pad, reps)], axis=0)
+
+
+@functools.cache
+def _pool(workers: int) -> concurrent.futures.ThreadPoolExecutor:
+    """A pool of ``workers`` threads kept for the life of the process (starting threads
+    for every call cost ~0.5 ms, against ~10 ms for 1000 muscles)."""
+    return concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="pamid-lanes")
+
+
+def _cpu_workers() -> int:
+    """Threads that feed one CPU device: one per core available to this process. (An
+    accelerator runs each call across all of itself: one thread.)"""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _map_lanes_sharded(fn, arrays, n, chunk, devices):

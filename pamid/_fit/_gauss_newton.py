@@ -51,7 +51,7 @@ from ._variable_projection import _small_cholesky_solve
 CPU_CHUNK_LANES = 512
 
 #: Largest subsample of a muscle scanned for the start (evenly spaced over its samples).
-START_SAMPLES = 128
+START_SAMPLES = 64
 
 #: Relative step size (largest over the constants) of the last step below which the exact
 #: Hessian replaces JᵀJ (when it is positive definite): Newton near the optimum.
