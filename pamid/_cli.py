@@ -31,6 +31,11 @@ def _enable_compilation_cache() -> None:
     jax.config.update("jax_compilation_cache_dir", cache)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    # ... and the traced programs, so that a new process does not trace them again either
+    # (off again when main returns: see main).
+    from ._fit import _export_cache
+
+    _export_cache.enable(Path(cache) / "exported")
 
 
 def _stage(message: str, quiet: bool) -> None:
@@ -294,7 +299,9 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     from ._errors import BenchDataError
+    from ._fit import _export_cache
 
+    exporting = _export_cache.directory()
     _enable_compilation_cache()
     try:
         with warnings.catch_warnings():
@@ -309,6 +316,8 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"pamid: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    finally:  # a caller in the same process (a test, a notebook) gets its setting back
+        _export_cache.enable(exporting)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

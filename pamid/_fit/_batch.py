@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from . import _export_cache
 from ._sharding import chosen_devices, lane_devices, lane_sharding, lanes_per_call
 
 
@@ -85,7 +86,7 @@ def _dense_ids(ids) -> np.ndarray:
 CHUNK_LANES = 2048
 
 
-def map_lanes(fn, *arrays, chunk: int | None = None):
+def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = None):
     """Apply ``fn`` to the arrays (pytrees with a leading lane axis) in chunks of lanes.
 
     Every chunk has the same size (the last is padded by repeating its final lane, and the
@@ -97,6 +98,9 @@ def map_lanes(fn, *arrays, chunk: int | None = None):
     device, padded to a multiple of the device count, and is split evenly across the devices
     along the lane axis; ``fn`` (a jitted, vmapped function) then runs partitioned, each
     device on its own lanes. With one device nothing of this happens.
+
+    ``cache_key``: a name for ``fn`` and everything it closes over; on one device, calls then
+    go through the exported program kept on disk when :mod:`._export_cache` is on.
     """
     import jax
 
@@ -111,6 +115,8 @@ def map_lanes(fn, *arrays, chunk: int | None = None):
     pinned = chosen_devices() is not None or jax.config.jax_default_device is not None
     device = devices[0] if pinned else None
     workers = _cpu_workers() if devices[0].platform == "cpu" else 1
+    if cache_key is not None:
+        fn = functools.partial(_export_cache.call, cache_key, fn)
     return _map_lanes_one_device(fn, arrays, n, chunk, device, workers)
 
 

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._batch import FitData, map_lanes
-from ._least_squares import residuals, solve
+from ._least_squares import _key, residuals, solve
 from ._spec import ModelSpec
 
 
@@ -125,6 +125,7 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
         lambda *a: _profile_batch(spec, *a, n_iter=n_iter, inner_steps=inner_steps),
         jnp.asarray(theta), jnp.asarray(se), jnp.asarray(tcrit), jnp.asarray(s2),
         jnp.asarray(sse), data.x, data.y, data.w,
+        cache_key=_key("profile", spec, n_iter, inner_steps),
     )
     ends, ok = np.asarray(ends), np.asarray(ok)
     ends = np.where(ok, ends, np.nan)

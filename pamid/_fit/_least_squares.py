@@ -20,7 +20,7 @@ import numpy as np
 
 from ._batch import FitData, map_lanes
 from ._gauss_newton import CPU_CHUNK_LANES, sarosi_gauss_newton
-from ._spec import ModelSpec
+from ._spec import ModelSpec, builtin_key
 from ._variable_projection import sarosi_variable_projection
 
 SOLVERS = (
@@ -164,12 +164,13 @@ def solve(
             ),
             data.x, data.y, data.w, *start,
             chunk=CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None,
+            cache_key=("sarosi_gauss_newton", max_steps, rtol, atol),
         )
         theta = np.asarray(theta)
         ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
         return theta, ok, np.asarray(steps)
     if theta0 is None:
-        theta0 = map_lanes(spec.start, data.x, data.y, data.w)
+        theta0 = map_lanes(spec.start, data.x, data.y, data.w, cache_key=_key("start", spec))
     theta0 = jnp.asarray(theta0, dtype=jnp.float64)
     if bounds is not None:
         lower, upper = (jnp.broadcast_to(jnp.asarray(b, float), theta0.shape[-1:]) for b in bounds)
@@ -185,10 +186,17 @@ def solve(
         theta, ok, steps = map_lanes(
             lambda t0, x, y, w: _solve_batch(spec, solver, t0, x, y, w, max_steps, rtol, atol),
             theta0, data.x, data.y, data.w,
+            cache_key=_key("solve", spec, solver, max_steps, rtol, atol),
         )
     theta = np.asarray(theta)
     ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
     return theta, ok, np.asarray(steps)
+
+
+def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
+    """The ``cache_key`` of a batched call (None, no caching, for specs not pamid's own)."""
+    name = builtin_key(spec)
+    return None if name is None else (what, *name, *static)
 
 
 def statistics(spec: ModelSpec, theta, data: FitData):
@@ -196,6 +204,6 @@ def statistics(spec: ModelSpec, theta, data: FitData):
     the Jacobian has full rank at the optimum (the constants are identifiable)."""
     out = map_lanes(
         lambda t, x, y, w: _statistics(spec, t, x, y, w), jnp.asarray(theta), data.x, data.y,
-        data.w,
+        data.w, cache_key=_key("statistics", spec),
     )
     return tuple(np.asarray(a) for a in out)

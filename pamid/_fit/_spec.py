@@ -135,6 +135,15 @@ CULLINAN_DYNAMIC = dataclasses.replace(
 MODELS = {"sarosi": SAROSI, "cullinan": CULLINAN}
 
 
+def builtin_key(spec: ModelSpec) -> tuple | None:
+    """A name for one of pamid's own specs that is the same in every process (the key of
+    its exported programs, ``_export_cache``); None for any other spec."""
+    for known in (SAROSI, CULLINAN, CULLINAN_DYNAMIC):
+        if spec is known:
+            return (known.name, known.source)
+    return None
+
+
 def get_model(name: str, frame=None) -> ModelSpec:
     """The spec for a model name; for "cullinan", with G when the data carry a velocity."""
     try:

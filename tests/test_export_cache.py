@@ -1,0 +1,94 @@
+"""The on-disk cache of exported programs (``pamid/_fit/_export_cache.py``) that lets the
+command line skip tracing: same answers as tracing, entries per input shape, a clean
+fallback for what cannot be exported."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import pamid
+from pamid._fit import _export_cache
+
+
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    _export_cache.enable(tmp_path / "exported")
+    yield tmp_path / "exported"
+    _export_cache.enable(None)
+
+
+def entries(directory, suffix=".jaxexport"):
+    return sorted(p.name for p in directory.iterdir() if p.name.endswith(suffix))
+
+
+def test_when_off_the_function_runs_as_it_is(monkeypatch):
+    monkeypatch.setattr(_export_cache, "_DIR", None)
+    assert _export_cache.directory() is None
+    assert _export_cache.call(("f",), lambda a: a + 1, 1.0) == 2.0
+
+
+def test_an_entry_per_shape_read_back_by_a_new_process(cache_dir, monkeypatch):
+    traced = []
+
+    def fn(a, b):
+        traced.append(a.shape)
+        return jnp.sin(a) * b.sum(), (jnp.cumsum(a), b.T)
+
+    a, b = np.linspace(0, 1, 5), np.arange(6.0).reshape(2, 3)
+    first = _export_cache.call(("fn", 1), fn, a, b)
+    assert len(entries(cache_dir)) == 1 and traced == [(5,)]
+    again = _export_cache.call(("fn", 1), fn, a, b)  # same process: the loaded program
+    assert traced == [(5,)]
+    monkeypatch.setattr(_export_cache, "_LOADED", {})  # as a new process: read from disk
+    loaded = _export_cache.call(("fn", 1), fn, a, b)
+    assert traced == [(5,)]
+    want = (np.sin(a) * b.sum(), (np.cumsum(a), b.T))
+    for got in (first, again, loaded):
+        for g, w in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+            np.testing.assert_allclose(g, w, rtol=1e-15)
+    _export_cache.call(("fn", 1), fn, np.linspace(0, 1, 7), b)  # a new shape: a new entry
+    _export_cache.call(("fn", 2), fn, a, b)  # another static argument: a new entry
+    assert len(entries(cache_dir)) == 3
+
+
+def test_what_cannot_be_exported_runs_as_it_is_and_is_remembered(cache_dir):
+    def with_callback(a):
+        return jax.pure_callback(lambda v: np.asarray(v) * 2, jax.ShapeDtypeStruct(a.shape,
+                                                                                   a.dtype), a)
+
+    a = np.arange(3.0)
+    np.testing.assert_array_equal(_export_cache.call(("cb",), with_callback, a), a * 2)
+    assert entries(cache_dir) == [] and len(entries(cache_dir, ".failed")) == 1
+    np.testing.assert_array_equal(_export_cache.call(("cb",), with_callback, a), a * 2)
+
+
+def test_a_damaged_entry_is_exported_again(cache_dir, monkeypatch):
+    fn = lambda a: a * 3.0  # noqa: E731
+    a = np.arange(4.0)
+    _export_cache.call(("triple",), fn, a)
+    (name,) = entries(cache_dir)
+    (cache_dir / name).write_bytes(b"not a program")
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    np.testing.assert_array_equal(_export_cache.call(("triple",), fn, a), a * 3.0)
+    assert (cache_dir / name).stat().st_size > 100
+
+
+def test_fits_through_the_cache_equal_traced_fits(small_bench, cache_dir, monkeypatch):
+    """Solve, statistics and profile intervals, exported then read back: the same answers
+    as the traced functions (the same programs, compiled the same way)."""
+    _export_cache.enable(None)
+    traced = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    _export_cache.enable(cache_dir)
+    exported = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    assert len(entries(cache_dir)) == 3  # solve, statistics, profile
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    loaded = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    for fit in (exported, loaded):
+        np.testing.assert_array_equal(fit.theta, traced.theta)
+        np.testing.assert_array_equal(fit.ci95, traced.ci95)
+        np.testing.assert_array_equal(fit.ci95_profile, traced.ci95_profile)
+        np.testing.assert_array_equal(fit.converged, traced.converged)
