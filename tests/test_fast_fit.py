@@ -166,3 +166,29 @@ def test_a_muscle_without_finite_start_stops_at_once(small_bench):
     np.testing.assert_array_equal(ok, [True, False, True])
     assert steps[1] == 0
     assert max_rel(theta[[0, 2]], best[[0, 2]]) < 1e-12
+
+
+def test_written_out_statistics_equal_the_jacobian_and_svd(theta31):
+    """``sarosi_statistics`` (sums over the samples, unrolled Cholesky) against the generic
+    path (``jax.jacfwd``, QR, SVD): the same SSE, R and (JᵀJ)⁻¹, and the same verdict on
+    muscles whose constants the data cannot determine (+inf inverse, not full rank)."""
+    from pamid._fit._least_squares import _statistics
+
+    groups = hard_muscles(theta31)
+    data = pamid.pack_muscles(groups)
+    theta, _, _ = solve(SAROSI, data)
+    fast = [np.asarray(a) for a in gn.sarosi_statistics(jnp.asarray(theta), *data[:3])]
+    ref = [np.asarray(a) for a in _statistics(SAROSI, jnp.asarray(theta), *data[:3])]
+    sse, inv, corr, n, full_rank = fast
+    np.testing.assert_array_equal(full_rank, ref[4])
+    np.testing.assert_array_equal(full_rank, [True, False, False, False])
+    np.testing.assert_array_equal(n, ref[3])
+    np.testing.assert_allclose(sse, ref[0], rtol=1e-12)
+    np.testing.assert_allclose(corr, ref[2], rtol=1e-13)
+    assert max_rel(inv[0], ref[1][0]) < 1e-9
+    assert np.all(np.isinf(inv[1:]))
+    # and against NumPy from the analytic Jacobian
+    (p, k), y = groups[0]
+    jac = jacobian_np(theta[0], p, k)
+    assert max_rel(inv[0], np.linalg.inv(jac.T @ jac)) < 1e-9
+    assert corr[0] == pytest.approx(np.corrcoef(y, force_np(theta[0], p, k))[0, 1], rel=1e-13)

@@ -194,8 +194,9 @@ def _map_lanes_sharded(fn, arrays, n, chunk, devices):
         if size == n:  # one call, no padding: the arrays go to the devices as they are
             part = jax.tree.map(lambda a: jax.device_put(a, sharding), arrays)
         else:
-            idx = np.minimum(np.arange(start, start + size), stop - 1)
-            part = jax.tree.map(lambda a: jax.device_put(a[idx], sharding), arrays)
+            part = jax.tree.map(
+                lambda a: jax.device_put(_lanes(a, start, stop, size), sharding), arrays
+            )
         out = jax.tree.map(np.asarray, fn(*part))
         outputs.append(jax.tree.map(lambda a: a[: stop - start], out))
     if len(outputs) == 1:

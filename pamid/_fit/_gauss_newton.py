@@ -64,6 +64,11 @@ NEWTON_BELOW = 0.01
 #: large wander off (both measured on synthetic muscles; tests/test_fast_fit.py).
 GROW_LIMIT = 2.0
 
+#: Smallest Cholesky pivot of the equilibrated JᵀWJ (unit diagonal) for which the constants
+#: count as determined by the data (``sarosi_statistics``): smaller, and the inverse has
+#: lost more than half of its digits.
+RANK_PIVOT = 1e-13
+
 #: Successive parabolic steps that refine the best grid point of the start's scan.
 START_REFINE = 4
 
@@ -338,10 +343,11 @@ def _pass(theta, step, p, k, y, w, sw, rtol, atol, newton, full=True):
 
 
 def _fixed_jtj(p, k, y, w):
-    """JᵀJ entries of the columns (κ·p, p, 1), which do not depend on the constants, and
-    yᵀWy."""
+    """JᵀJ entries of the columns (κ·p, p, 1), which do not depend on the constants (the
+    last of them is Σw, the sample count), yᵀWy and Σ w·y."""
     kp = k * p
-    return _reduce_samples([w * kp * kp, w * kp * p, w * kp, w * p * p, w * p, w, w * y * y])
+    wy = w * y
+    return _reduce_samples([w * kp * kp, w * kp * p, w * kp, w * p * p, w * p, w, wy * y, wy])
 
 
 def _jtj(varying, fixed):
@@ -393,7 +399,7 @@ def sarosi_gauss_newton(
     theta0 = jnp.asarray(theta0, dtype=jnp.float64)
     m = theta0.shape[0]
     sw = jnp.sqrt(w)
-    *fixed, yy = _fixed_jtj(p, k, y, w)
+    *fixed, yy, _ = _fixed_jtj(p, k, y, w)
     # SSE changes below this are rounding: residuals of 1e-12 of the data (noiseless data
     # reach it at the optimum, where the SSE is rounding noise).
     sse_floor = 1e-24 * yy
@@ -464,3 +470,42 @@ def sarosi_gauss_newton(
     )
     _, theta, _, _, _, _, _, converged, steps, _ = jax.lax.while_loop(cond, body, state)
     return theta, converged, steps
+
+
+@jax.jit
+def sarosi_statistics(theta, x, y, w):
+    """What the intervals need at the fitted constants, from two passes over the samples.
+
+    Returns, per muscle: SSE, (JᵀWJ)⁻¹ (6×6), the correlation R of data and model, the
+    sample count Σw, and whether JᵀWJ is positive definite to working precision (the
+    constants are determined by the data). (JᵀWJ)⁻¹ is the inverse of the normal matrix,
+    equilibrated to unit diagonal and factorised by an unrolled Cholesky; where its smallest
+    pivot is below ``RANK_PIVOT`` (the columns of J are dependent to about 1e-6.5 of their
+    length), the muscle is rank-deficient and the inverse is +inf.
+
+    R from the same sums: with the model m = y + r, Σw·r·m = Σ_j θ_j·(Jᵀ W r)_j over the
+    columns in which eq. 2.1 is linear, so Σw·r·y = Σw·r·m − rᵀWr.
+    """
+    p, k = x
+    zero = jnp.zeros_like(theta)
+    varying, jtr, sse, _, _ = _pass(theta, zero, p, k, y, w, jnp.sqrt(w), 0.0, 0.0, 0)
+    *fixed, yy, sum_y = _fixed_jtj(p, k, y, w)
+    n = fixed[-1]
+    jtj = _jtj(varying, fixed)
+    eye = jnp.eye(6, dtype=theta.dtype)
+    cols, pivots = zip(
+        *(_solve_scaled(jtj, jnp.broadcast_to(eye[j], theta.shape), 0.0, with_pivot=True)
+          for j in range(6))
+    )
+    full_rank = pivots[0] > RANK_PIVOT
+    inv = jnp.stack(cols, -1)
+    inv = jnp.where(full_rank[:, None, None], 0.5 * (inv + jnp.swapaxes(inv, -1, -2)), jnp.inf)
+    lin = jnp.stack([theta[:, 0], theta[:, 1], theta[:, 3], theta[:, 4], theta[:, 5]], -1)
+    r_m = jnp.sum(lin * jnp.stack([jtr[:, 0], jtr[:, 1], jtr[:, 3], jtr[:, 4], jtr[:, 5]], -1), -1)
+    r_y = r_m - sse
+    y_mean, r_mean = sum_y / n, jtr[:, 5] / n
+    var_y = yy - n * y_mean**2
+    cov_yr = r_y - n * y_mean * r_mean
+    var_r = sse - n * r_mean**2
+    corr = (var_y + cov_yr) / jnp.sqrt(var_y * (var_y + 2 * cov_yr + var_r))
+    return sse, inv, corr, n, full_rank

