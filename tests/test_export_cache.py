@@ -92,3 +92,11 @@ def test_fits_through_the_cache_equal_traced_fits(small_bench, cache_dir, monkey
         np.testing.assert_array_equal(fit.ci95, traced.ci95)
         np.testing.assert_array_equal(fit.ci95_profile, traced.ci95_profile)
         np.testing.assert_array_equal(fit.converged, traced.converged)
+
+
+def test_python_scalars_among_the_inputs(cache_dir):
+    scale = lambda a, c: a * c  # noqa: E731
+    a = np.arange(3.0)
+    np.testing.assert_array_equal(_export_cache.call(("scale",), scale, a, 2.0), a * 2.0)
+    np.testing.assert_array_equal(_export_cache.call(("scale",), scale, a, 3.0), a * 3.0)
+    assert len(entries(cache_dir)) == 1

@@ -25,6 +25,8 @@ import re
 import threading
 from pathlib import Path
 
+import numpy as np
+
 from .._io import write_bytes_atomic
 
 _DIR: Path | None = None
@@ -75,7 +77,8 @@ def _key(name: tuple, args) -> str:
     import jax
 
     leaves, treedef = jax.tree.flatten(args)
-    avals = [(tuple(a.shape), str(a.dtype)) for a in leaves]
+    avals = [(np.shape(a), str(a.dtype if hasattr(a, "dtype") else np.result_type(a)))
+             for a in leaves]
     parts = (
         repr(name),
         str(treedef),
