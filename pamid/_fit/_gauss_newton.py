@@ -42,7 +42,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._variable_projection import _small_cholesky_solve
+from ._variable_projection import _parabolic_trial, _shrink_bracket, _small_cholesky_solve
 
 #: Lanes per compiled call on the CPU (``map_lanes`` chunks): a chunk's arrays (1.2 MB each
 #: at 300 samples) stay in the caches. Single-thread CPU time at 10,000 muscles of 300
@@ -256,32 +256,17 @@ def sarosi_fast_start(x, y, w, grid=START_GRID, n_sub=START_SAMPLES, n_refine=ST
     b_mid = jnp.take_along_axis(beta, ic[..., None], axis=1)[:, 0]
 
     def refine(_, state):
-        # Successive parabolic interpolation; a step that leaves the bracket falls back to
-        # golden section. The bracket (lo, hi) always holds the best point found, mid.
-        lo, mid, hi, f_lo, f_mid, f_hi, b_mid = state
-        num = (mid - lo) ** 2 * (f_mid - f_hi) - (mid - hi) ** 2 * (f_mid - f_lo)
-        den = (mid - lo) * (f_mid - f_hi) - (mid - hi) * (f_mid - f_lo)
-        t = mid - 0.5 * num / jnp.where(den == 0, 1e-300, den)
-        golden = jnp.where(hi - mid > mid - lo, mid + 0.382 * (hi - mid), mid - 0.382 * (mid - lo))
-        ok = jnp.isfinite(t) & (t > lo) & (t < hi) & (jnp.abs(t - mid) > 1e-12 * jnp.abs(mid))
-        t = jnp.where(ok, t, golden)
+        # Successive parabolic interpolation, safeguarded by golden section; the bracket
+        # always holds the best point found, mid, whose β is kept beside it.
+        bracket, b_mid = state
+        t = _parabolic_trial(*bracket, rel_tol=1e-12)
         b_t, f_t = _profile(t[:, None], k, mono, fixed)
-        b_t, f_t = b_t[:, 0], f_t[:, 0]
-        better, left = f_t < f_mid, t < mid
-        return (
-            jnp.where(better, jnp.where(left, lo, mid), jnp.where(left, t, lo)),
-            jnp.where(better, t, mid),
-            jnp.where(better, jnp.where(left, mid, hi), jnp.where(left, hi, t)),
-            jnp.where(better, jnp.where(left, f_lo, f_mid), jnp.where(left, f_t, f_lo)),
-            jnp.where(better, f_t, f_mid),
-            jnp.where(better, jnp.where(left, f_mid, f_hi), jnp.where(left, f_hi, f_t)),
-            jnp.where(better[:, None], b_t, b_mid),
-        )
+        bracket, better = _shrink_bracket(bracket, t, f_t[:, 0])
+        return bracket, jnp.where(better[:, None], b_t[:, 0], b_mid)
 
     # A loop, not unrolled: the command line traces this function in every process.
-    state = (lo, mid, hi, f_lo, f_mid, f_hi, b_mid)
-    _, mid, _, _, _, _, b_mid = jax.lax.fori_loop(0, n_refine, refine, state)
-    b = b_mid
+    state = ((lo, mid, hi, f_lo, f_mid, f_hi), b_mid)
+    (_, mid, *_), b = jax.lax.fori_loop(0, n_refine, refine, state)
     return jnp.stack([b[:, 0], b[:, 1], mid, b[:, 2], b[:, 3], b[:, 4]], -1)
 
 

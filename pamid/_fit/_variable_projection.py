@@ -96,6 +96,34 @@ def _small_cholesky_solve(a, b, with_pivot=False):
     return jnp.stack(z)
 
 
+def _parabolic_trial(lo, mid, hi, f_lo, f_mid, f_hi, rel_tol):
+    """The next point of safeguarded successive parabolic interpolation in the bracket
+    (lo, hi) around the best point so far, mid: the vertex of the parabola through the three
+    points, or a golden-section step into the larger side where the vertex is not finite,
+    leaves the bracket or is within ``rel_tol`` of mid."""
+    num = (mid - lo) ** 2 * (f_mid - f_hi) - (mid - hi) ** 2 * (f_mid - f_lo)
+    den = (mid - lo) * (f_mid - f_hi) - (mid - hi) * (f_mid - f_lo)
+    x = mid - 0.5 * num / jnp.where(den == 0, 1e-300, den)
+    golden = jnp.where(hi - mid > mid - lo, mid + 0.382 * (hi - mid), mid - 0.382 * (mid - lo))
+    ok = jnp.isfinite(x) & (x > lo) & (x < hi) & (jnp.abs(x - mid) > rel_tol * jnp.abs(mid))
+    return jnp.where(ok, x, golden)
+
+
+def _shrink_bracket(bracket, x, f_x):
+    """The bracket (lo, mid, hi, f_lo, f_mid, f_hi) after f(x) = f_x: still around the best
+    point found, now x where it is better than mid. Also returns whether it was."""
+    lo, mid, hi, f_lo, f_mid, f_hi = bracket
+    better, left = f_x < f_mid, x < mid
+    return (
+        jnp.where(better, jnp.where(left, lo, mid), jnp.where(left, x, lo)),
+        jnp.where(better, x, mid),
+        jnp.where(better, jnp.where(left, mid, hi), jnp.where(left, hi, x)),
+        jnp.where(better, jnp.where(left, f_lo, f_mid), jnp.where(left, f_x, f_lo)),
+        jnp.where(better, f_x, f_mid),
+        jnp.where(better, jnp.where(left, f_mid, f_hi), jnp.where(left, f_hi, f_x)),
+    ), better
+
+
 def _theta(a3, beta):
     return jnp.stack([beta[0], beta[1], a3, beta[2], beta[3], beta[4]])
 
@@ -115,28 +143,9 @@ def _one_muscle(p, k, y, w, n_refine, accurate):
         # enough for a start, not for the answer of the variable-projection solver.
         return _linear_solve(a3, p, k, y, w, accurate=accurate)[1]
 
-    def refine(_, state):
-        lo, mid, hi, f_lo, f_mid, f_hi = state
-        num = (mid - lo) ** 2 * (f_mid - f_hi) - (mid - hi) ** 2 * (f_mid - f_lo)
-        den = (mid - lo) * (f_mid - f_hi) - (mid - hi) * (f_mid - f_lo)
-        x = mid - 0.5 * num / jnp.where(den == 0, 1e-300, den)
-        golden = jnp.where(hi - mid > mid - lo, mid + 0.382 * (hi - mid), mid - 0.382 * (mid - lo))
-        ok = jnp.isfinite(x) & (x > lo) & (x < hi) & (jnp.abs(x - mid) > 1e-15 * jnp.abs(mid))
-        x = jnp.where(ok, x, golden)
-        f_x = reduced(x)
-        better = f_x < f_mid
-        left = x < mid
-        # Keep a bracket (lo, hi) around the best point found so far.
-        new_lo, f_new_lo = (
-            jnp.where(better, jnp.where(left, lo, mid), jnp.where(left, x, lo)),
-            jnp.where(better, jnp.where(left, f_lo, f_mid), jnp.where(left, f_x, f_lo)),
-        )
-        new_hi, f_new_hi = (
-            jnp.where(better, jnp.where(left, mid, hi), jnp.where(left, hi, x)),
-            jnp.where(better, jnp.where(left, f_mid, f_hi), jnp.where(left, f_hi, f_x)),
-        )
-        return (new_lo, jnp.where(better, x, mid), new_hi, f_new_lo, jnp.minimum(f_x, f_mid),
-                f_new_hi)
+    def refine(_, bracket):
+        x = _parabolic_trial(*bracket, rel_tol=1e-15)
+        return _shrink_bracket(bracket, x, reduced(x))[0]
 
     state = (lo, mid, hi, sse[i - 1], sse[i], sse[i + 1])
     lo, mid, hi, _, _, _ = jax.lax.fori_loop(0, n_refine, refine, state)
