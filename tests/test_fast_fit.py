@@ -192,3 +192,20 @@ def test_written_out_statistics_equal_the_jacobian_and_svd(theta31):
     jac = jacobian_np(theta[0], p, k)
     assert max_rel(inv[0], np.linalg.inv(jac.T @ jac)) < 1e-9
     assert corr[0] == pytest.approx(np.corrcoef(y, force_np(theta[0], p, k))[0, 1], rel=1e-13)
+
+
+def test_a_lane_out_of_passes_returns_its_last_evaluated_point(small_bench):
+    """Not the trial step computed in its last pass, which nothing has checked: after one
+    pass a lane has only evaluated its start; after a few, a point whose SSE was seen."""
+    data = small_bench.data
+    start = np.asarray(gn.sarosi_fast_start(data.x, data.y, data.w)) * 1.05
+    theta, ok, steps = gn.sarosi_gauss_newton(data.x, data.y, data.w, start, max_steps=1)
+    assert not np.any(ok) and np.all(steps == 1)
+    np.testing.assert_array_equal(theta, start)
+    best, ok_best, _ = solve(SAROSI, data)
+    theta3, ok3, _ = gn.sarosi_gauss_newton(data.x, data.y, data.w, start, max_steps=3)
+    assert not np.any(ok3) and np.all(ok_best)
+    for i, ((p, k), y) in enumerate(small_bench.groups):
+        sse_start = np.sum((force_np(start[i], p, k) - y) ** 2)
+        sse_3 = np.sum((force_np(np.asarray(theta3[i]), p, k) - y) ** 2)
+        assert sse_3 < 0.01 * sse_start  # an accepted point on the way down

@@ -31,7 +31,8 @@ with J at the new point; the neglected term is ½·Δθᵀ(∂²r/∂θ²)Δθ, 
 test is met (|Δa3| ≲ 1e-11/%: (a1·p + a2)·κ²·e·Δa3² ≲ 1e-16), far below atol. A step that
 multiplies the residual sum of squares by more than ``GROW_LIMIT`` (or makes it non-finite)
 is halved; optimistix's Gauss–Newton has no safeguard. A lane whose step is not finite stops,
-not converged; so does one whose step was halved below the tolerance.
+not converged; so does one whose step was halved below the tolerance. A lane that has not
+converged returns its last accepted point.
 """
 
 from __future__ import annotations
@@ -453,7 +454,10 @@ def sarosi_gauss_newton(
         jnp.zeros(m, jnp.int32),
         jnp.array(False),
     )
-    _, theta, _, _, _, _, _, converged, steps, _ = jax.lax.while_loop(cond, body, state)
+    _, theta, theta_prev, _, _, _, _, converged, steps, _ = jax.lax.while_loop(cond, body, state)
+    # A lane that has not converged returns its last accepted point, not a trial step that
+    # nobody has evaluated (or one that was rejected).
+    theta = jnp.where(converged[:, None], theta, theta_prev)
     return theta, converged, steps
 
 
