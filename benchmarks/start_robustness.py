@@ -11,7 +11,8 @@ hysteresis loop. The reference for each muscle: Gauss–Newton from a dense star
 points over all samples, 10 refinements). For each start setting: the time of start + solve
 for the benchmark's muscles (median of warm calls), and per data set the muscles that end
 with a higher SSE than the reference (relative 1e-9), the muscles the reference fits that
-are not converged, and the median / largest number of passes.
+are not converged, and the median / largest number of passes. Last, what one muscle that
+runs out of passes costs a batch of 1000 regular ones.
 """
 
 from __future__ import annotations
@@ -126,7 +127,38 @@ def main(argv=None) -> int:
     print()
     for r in [header] + rows:
         print("  ".join(str(c).ljust(w) for c, w in zip(r, widths)))
+    straggler_cost(sets["s in (−3, 2)"])
     return 0
+
+
+def straggler_cost(hard):
+    """What one muscle that runs out of passes costs a batch: 1000 benchmark muscles alone,
+    and with one such muscle added (``solve``, default settings, median of 5 warm calls)."""
+    from pamid._fit._batch import FitData
+    from pamid._fit._least_squares import solve
+    from pamid._fit._spec import SAROSI
+
+    _, ok, steps = (np.asarray(a) for a in gn.sarosi_gauss_newton(hard.x, hard.y, hard.w))
+    slow = np.flatnonzero(~ok & (steps == steps.max()))
+    if slow.size == 0:
+        print("\nno muscle of the hard set ran out of passes")
+        return
+    regular = dataset(7, 1000, 0.03, 2.0)
+    one = slow[:1]
+    mixed = FitData(*(
+        jax.tree.map(lambda a, b: np.concatenate([np.asarray(a), np.asarray(b)[one]]), r, h)
+        for r, h in zip(regular, hard)
+    ))
+    print("\nwhat one muscle that runs out of passes costs a batch (solve, median of 5):")
+    for label, data in (("1000 benchmark muscles", regular), ("the same + 1 such muscle", mixed)):
+        solve(SAROSI, data)
+        walls = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            _, ok, steps = solve(SAROSI, data)
+            walls.append(time.perf_counter() - t0)
+        print(f"  {label}: {1e3 * statistics.median(walls):.1f} ms, "
+              f"{int(ok.sum())}/{ok.size} converged, largest number of passes {steps.max()}")
 
 
 if __name__ == "__main__":
