@@ -100,16 +100,19 @@ def _reduce_samples(sums, maxima=()):
 
 def _solve_scaled(mat, rhs, ridge, with_pivot=False):
     """Solve mat·z = rhs per lane, mat (..., q, q) symmetric positive semi-definite: scaled to
-    unit diagonal, with ``ridge`` added to the diagonal, by an unrolled Cholesky.
+    unit diagonal, with ``ridge`` added to the diagonal, by an unrolled Cholesky. ``rhs`` is
+    (..., q), or (..., q, k) for k right-hand sides at once (one factorisation).
     ``with_pivot``: also return the smallest pivot (≤ 0: not positive definite)."""
     diag = jnp.diagonal(mat, axis1=-2, axis2=-1)
     d = jnp.sqrt(jnp.where(diag > 0, diag, 1.0))
     scaled = mat / (d[..., :, None] * d[..., None, :]) + ridge * jnp.eye(mat.shape[-1])
+    batch = mat.shape[:-2]
+    d_rhs = d if rhs.ndim == mat.ndim - 1 else d[..., None]
     flat_a = scaled.reshape(-1, *scaled.shape[-2:])
-    flat_b = (rhs / d).reshape(-1, rhs.shape[-1])
+    flat_b = (rhs / d_rhs).reshape(-1, *rhs.shape[len(batch):])
     z, pivot = jax.vmap(lambda a, b: _small_cholesky_solve(a, b, with_pivot=True))(flat_a, flat_b)
-    z = z.reshape(rhs.shape) / d
-    return (z, pivot.reshape(rhs.shape[:-1])) if with_pivot else z
+    z = z.reshape(rhs.shape) / d_rhs
+    return (z, pivot.reshape(batch)) if with_pivot else z
 
 
 def _span(k, w):
@@ -481,13 +484,9 @@ def sarosi_statistics(theta, x, y, w):
     *fixed, yy, sum_y = _fixed_jtj(p, k, y, w)
     n = fixed[-1]
     jtj = _jtj(varying, fixed)
-    eye = jnp.eye(6, dtype=theta.dtype)
-    cols, pivots = zip(
-        *(_solve_scaled(jtj, jnp.broadcast_to(eye[j], theta.shape), 0.0, with_pivot=True)
-          for j in range(6))
-    )
-    full_rank = pivots[0] > RANK_PIVOT
-    inv = jnp.stack(cols, -1)
+    eye = jnp.broadcast_to(jnp.eye(6, dtype=theta.dtype), jtj.shape)
+    inv, pivot = _solve_scaled(jtj, eye, 0.0, with_pivot=True)
+    full_rank = pivot > RANK_PIVOT
     inv = jnp.where(full_rank[:, None, None], 0.5 * (inv + jnp.swapaxes(inv, -1, -2)), jnp.inf)
     lin = jnp.stack([theta[:, 0], theta[:, 1], theta[:, 3], theta[:, 4], theta[:, 5]], -1)
     r_m = jnp.sum(lin * jnp.stack([jtr[:, 0], jtr[:, 1], jtr[:, 3], jtr[:, 4], jtr[:, 5]], -1), -1)
