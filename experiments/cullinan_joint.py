@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
 from pamid._data import _virtual_joint as vj  # noqa: E402
-from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
+from pamid._io import json_ready, save_figure_atomic, write_text_atomic  # noqa: E402
 from pamid._models import _cullinan_presets as cp  # noqa: E402
 from pamid._models._energy import trajectory_energy_J  # noqa: E402
 from pamid._models._joint import (  # noqa: E402
@@ -668,24 +668,9 @@ def main(argv=None):
         "element_diameter_scan": element,
         "elapsed_s": elapsed,
     }
-    text = json.dumps(_clean(payload), indent=1, allow_nan=False)
+    text = json.dumps(json_ready(payload), indent=1, allow_nan=False)
     write_text_atomic(out / f"{NAME}.json", text + "\n")
     return 0
-
-
-def _clean(x):
-    """JSON-ready: NumPy scalars to Python, NaN and ±inf (not valid JSON) to null."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    return x
 
 
 if __name__ == "__main__":

@@ -152,12 +152,13 @@ def refuse_overwrite_input(
 
 
 def json_ready(value):
-    """``value`` with NumPy scalars and arrays made plain Python, recursively, and every
-    non-finite float made None (JSON has no NaN)."""
+    """``value`` with NumPy scalars and arrays made plain Python, recursively, every
+    non-finite float made None (JSON has no NaN), and dictionary keys made strings (as JSON
+    writes them; a NumPy key would not be written at all)."""
     import numpy as np
 
     if isinstance(value, dict):
-        return {k: json_ready(x) for k, x in value.items()}
+        return {str(k): json_ready(x) for k, x in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):
         return [json_ready(x) for x in value]
     if isinstance(value, (bool, np.bool_)):
