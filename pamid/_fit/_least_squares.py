@@ -163,7 +163,7 @@ def solve(
                 x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
             ),
             data.x, data.y, data.w, *start,
-            chunk=CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None,
+            chunk=_sarosi_chunk(),
             cache_key=("sarosi_gauss_newton", max_steps, rtol, atol),
         )
         theta = np.asarray(theta)
@@ -193,6 +193,12 @@ def solve(
     return theta, ok, np.asarray(steps)
 
 
+def _sarosi_chunk() -> int | None:
+    """Lanes per call of the written-out Sárosi kernels: ``CPU_CHUNK_LANES`` on the CPU (the
+    arrays of a chunk stay in the caches), ``map_lanes``'s default elsewhere."""
+    return CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None
+
+
 def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
     """The ``cache_key`` of a batched call (None, no caching, for specs not pamid's own)."""
     name = builtin_key(spec)
@@ -210,7 +216,7 @@ def statistics(spec: ModelSpec, theta, data: FitData):
     if spec is SAROSI:
         out = map_lanes(
             sarosi_statistics, jnp.asarray(theta), data.x, data.y, data.w,
-            chunk=CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None,
+            chunk=_sarosi_chunk(),
             cache_key=("sarosi_statistics",),
         )
         return tuple(np.asarray(a) for a in out)
