@@ -9,7 +9,12 @@ the previous default (the 24-point variable-projection start and its parts, then
 Gauss–Newton), batched LAPACK calls of the shapes pamid uses, and, for scale, a hand-written
 batched Gauss–Newton (analytic Jacobian, normal equations, fixed step count) in JAX and in
 NumPy from the same start: a yardstick for what the hardware can do.
-It also checks the scaling of ``bench_to_fit_data`` (from a CSV loaded with ``load_bench``).
+It also checks the scaling of ``bench_to_fit_data`` (from a CSV loaded with ``load_bench``),
+and, at ``--cores-n`` muscles (default 10,000), how batches use the CPU: the solve with one
+thread per core against one thread, a chunk built by a gather against a slice, and the Sárosi
+statistics from sums against the Jacobian/QR/SVD path. ``--only-cores`` runs that part alone;
+run it under ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` for the sharded solve on
+two virtual devices.
 """
 
 from __future__ import annotations
@@ -111,6 +116,59 @@ def handwritten_gn_numpy(theta, p, k, y, w):
     return theta
 
 
+def cores_and_statistics(n, rep):
+    """The solve on one thread per core and on one; a chunk by gather and by slice; the
+    written-out Sárosi statistics and the generic ones."""
+    from pamid._fit import _batch
+    from pamid._fit._least_squares import _statistics, statistics
+
+    data = fit_batch.make_data(n)[2]
+    devices = jax.local_devices()
+    print(f"\nN = {n}: chunks, threads and statistics ({len(devices)} device(s): {devices})")
+    t_cores = timeit(lambda: solve(SAROSI, data), rep)
+    if len(devices) > 1:
+        print(f"  solve, sharded over {len(devices)} devices: {fit_batch.fmt_s(t_cores)}")
+    original = _batch._cpu_workers
+    _batch._cpu_workers = lambda: 1
+    try:
+        with pamid.use_devices(devices[:1]):
+            t_one = timeit(lambda: solve(SAROSI, data), rep)
+        _batch._cpu_workers = lambda: original()
+        with pamid.use_devices(devices[:1]):
+            t_threads = timeit(lambda: solve(SAROSI, data), rep)
+    finally:
+        _batch._cpu_workers = original
+    print(f"  solve on one device, one thread per core ({original()}): "
+          f"{fit_batch.fmt_s(t_threads)}; one thread: {fit_batch.fmt_s(t_one)}")
+    chunk = gn.CPU_CHUNK_LANES
+    parts = (data.x, data.y, data.w)
+    idx = np.arange(chunk)
+    t_gather = timeit(lambda: jax.block_until_ready(jax.tree.map(lambda a: a[idx], parts)), rep)
+    t_slice = timeit(
+        lambda: jax.block_until_ready(jax.tree.map(lambda a: a[:chunk], parts)), rep
+    )
+    part = jax.tree.map(lambda a: a[:chunk], parts)
+    t_call = timeit(lambda: jax.block_until_ready(gn.sarosi_gauss_newton(*part)), rep)
+    print(f"  one chunk of {chunk} lanes: gathered {fit_batch.fmt_s(t_gather)}, sliced "
+          f"{fit_batch.fmt_s(t_slice)}; its solve {fit_batch.fmt_s(t_call)}")
+    theta = solve(SAROSI, data)[0]
+    fast = statistics(SAROSI, theta, data)
+    generic = _batch.map_lanes(
+        lambda t, x, y, w: _statistics(SAROSI, t, x, y, w), jnp.asarray(theta), *parts
+    )
+    t_fast = timeit(lambda: statistics(SAROSI, theta, data), rep)
+    t_generic = timeit(
+        lambda: _batch.map_lanes(
+            lambda t, x, y, w: _statistics(SAROSI, t, x, y, w), jnp.asarray(theta), *parts
+        ),
+        rep,
+    )
+    inv_diff = np.max(np.abs(np.asarray(fast[1]) - np.asarray(generic[1]))
+                      / np.abs(np.asarray(generic[1])))
+    print(f"  statistics: from sums {fit_batch.fmt_s(t_fast)}, Jacobian/QR/SVD per lane "
+          f"{fit_batch.fmt_s(t_generic)}; (JᵀJ)⁻¹ equal to {inv_diff:.1e}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1000)
@@ -122,8 +180,14 @@ def main(argv=None) -> int:
         default=[500, 1000, 2000],
         help="N for the load_bench/bench_to_fit_data scaling check",
     )
+    parser.add_argument("--cores-n", type=int, default=10000,
+                        help="N of the chunks/threads/statistics section (0: skip it)")
+    parser.add_argument("--only-cores", action="store_true", help="run that section alone")
     args = parser.parse_args(argv)
     n, rep = args.n, args.repeats
+    if args.only_cores:
+        cores_and_statistics(args.cores_n, rep)
+        return 0
     _, groups, data, _, _ = fit_batch.make_data(n)
     x, y, w = data.x, data.y, data.w
     rows = []
@@ -241,6 +305,8 @@ def main(argv=None) -> int:
                     f"bench_to_fit_data {fit_batch.fmt_s(t2 - t1)}",
                     flush=True,
                 )
+    if args.cores_n:
+        cores_and_statistics(args.cores_n, rep)
     return 0
 
 

@@ -129,8 +129,9 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
 
     def run(start):
         stop = min(start + chunk, n)
-        # Contiguous slices (a gather of the same lanes took 2.6 ms per chunk of 512 lanes
-        # of 300 samples, the slice 0.7 ms); the last chunk is padded by its final lane.
+        # Contiguous slices (a gather of the same lanes took 4.1 ms per chunk of 512 lanes
+        # of 300 samples, the slice 1.1 ms: benchmarks/profile_pieces.py --only-cores); the
+        # last chunk is padded by its final lane.
         part = jax.tree.map(lambda a: _lanes(a, start, stop, chunk), arrays)
         if device is None:
             out = fn(*part)
@@ -142,13 +143,13 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
     workers = min(len(starts), workers)
     if workers > 1:
         # On the CPU as NumPy (no copy): slicing a JAX array is an operation queued on the
-        # device behind the running chunks (20 chunks: 128 ms from JAX arrays, 101 ms from
-        # NumPy views).
+        # device behind the running chunks (measured by hand, 20 chunks: 128 ms from JAX
+        # arrays, 101 ms from NumPy views).
         arrays = jax.tree.map(np.asarray, arrays)
         # A CPU device runs pamid's small kernels on one core per call, and calls made from
         # several threads run side by side (JAX releases the GIL while XLA runs): the Sárosi
-        # solve of 10,000 muscles of 300 samples in chunks of 512 took 154 ms from one
-        # thread and 92 ms from two, on two cores.
+        # solve of 10,000 muscles of 300 samples in chunks of 512 took 186 ms from one
+        # thread and 98 ms from two, on two cores (benchmarks/profile_pieces.py --only-cores).
         outputs = list(_pool(workers).map(run, starts))
     else:
         outputs = [run(start) for start in starts]

@@ -210,8 +210,8 @@ def statistics(spec: ModelSpec, theta, data: FitData):
     the Jacobian has full rank at the optimum (the constants are identifiable).
 
     For the Sárosi model, the written-out sums of ``sarosi_statistics`` (two passes over the
-    samples; 10,000 muscles of 300 samples: 19 ms, against 149 ms for a Jacobian, QR and SVD
-    per lane, the same inverse to 1e-10);
+    samples; 10,000 muscles of 300 samples: 21 ms, against 128 ms for a Jacobian, QR and SVD
+    per lane, the same inverse to 1e-10: ``benchmarks/profile_pieces.py --only-cores``);
     for other models, the Jacobian by ``jax.jacfwd`` and an SVD."""
     if spec is SAROSI:
         out = map_lanes(
