@@ -100,3 +100,23 @@ def test_python_scalars_among_the_inputs(cache_dir):
     np.testing.assert_array_equal(_export_cache.call(("scale",), scale, a, 2.0), a * 2.0)
     np.testing.assert_array_equal(_export_cache.call(("scale",), scale, a, 3.0), a * 3.0)
     assert len(entries(cache_dir)) == 1
+
+
+def test_a_cache_that_cannot_be_written_costs_only_the_saving(tmp_path, monkeypatch):
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    _export_cache.enable(blocker / "exported")  # under a file: cannot be created
+    assert _export_cache.directory() is None
+    _export_cache.enable(tmp_path / "full")
+
+    def disk_full(path, data):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(_export_cache, "write_bytes_atomic", disk_full)
+    try:
+        a = np.arange(3.0)
+        np.testing.assert_array_equal(_export_cache.call(("full",), lambda v: v + 1, a), a + 1)
+        assert list((tmp_path / "full").iterdir()) == []
+    finally:
+        _export_cache.enable(None)

@@ -2,8 +2,9 @@
 
 JAX's persistent compilation cache skips XLA's compile, but every process still traces the
 Python code and lowers it to StableHLO before it can look the compiled program up; for the
-one-muscle ``pamid fit`` that was most of the run (with a warm compilation cache: 0.45 s
-for the solve, 0.22 s for the statistics, 0.78 s for the profile intervals). Here a function
+one-muscle ``pamid fit`` that was most of the run (measured by hand, with a warm
+compilation cache: 0.45 s for the solve, 0.22 s for the statistics, 0.78 s for the profile
+intervals; ``benchmarks/fit_batch.py`` section 6 times the command as a whole). Here a function
 is exported once per input shape with :mod:`jax.export` and serialized; a later process
 deserializes it (milliseconds) and goes straight to the compilation cache.
 
@@ -35,13 +36,18 @@ _LOADED: dict[str, object] = {}  # key → jitted exported.call, or None: run th
 
 
 def enable(directory) -> None:
-    """Keep exported programs in ``directory`` (created if needed); None turns it off."""
+    """Keep exported programs in ``directory`` (created if needed); None turns it off, and so
+    does a directory that cannot be created (the programs are then traced as usual)."""
     global _DIR
     if directory is None:
         _DIR = None
         return
     path = Path(directory)
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        _DIR = None
+        return
     _DIR = path
 
 
@@ -121,10 +127,19 @@ def _load_or_export(key: str, fn, args):
         exported = _export(jax.jit(fn), args)
         data = exported.serialize()
     except Exception:  # noqa: BLE001 - not exportable: run the function itself from now on
-        write_bytes_atomic(failed, b"")
+        _remember(failed, b"")
         return None
-    write_bytes_atomic(path, data)
+    _remember(path, data)
     return jax.jit(exported.call)
+
+
+def _remember(path: Path, data: bytes) -> None:
+    """Write an entry; a cache that cannot be written (full, read-only) only costs the next
+    process its tracing."""
+    try:
+        write_bytes_atomic(path, data)
+    except OSError:
+        pass
 
 
 def _export(jitted, args):
