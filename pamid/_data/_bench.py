@@ -1,11 +1,12 @@
-"""Loading bench measurements of pneumatic artificial muscles (PAMs) from CSV or Parquet.
+"""Loading bench measurements of pneumatic artificial muscles (PAMs): CSV, Parquet, Excel.
 
 A bench file is a table with one row per sample and the unit of each quantity in the column
 name, e.g. ``pressure_kPa``, ``force_N``, ``contraction_pct``. :func:`load_bench` checks the
 file thoroughly, converts it to pamid's units (kPa, %, N, mm, s) and returns a
 :class:`BenchData`. Every problem with the file raises :class:`~pamid._errors.BenchDataError`,
 whose message names the file and, where it applies, the column and the data row (1-based,
-header not counted) and, for CSV, the line in the file.
+header not counted) and, for CSV, the line in the file (for a spreadsheet, the sheet and
+the cell).
 
 Columns
 -------
@@ -18,23 +19,45 @@ Required:
       with the nominal length l0 in mm, from an ``l0_mm`` column (constant within a muscle)
       or from the ``l0_mm=`` argument.
 Optional:
-    ``muscle`` (identifier, read as text), ``time_s``, ``direction`` (+1 contracting,
-    -1 extending), ``temperature_C``, ``cycle`` (whole numbers).
+    ``muscle`` (identifier, read as text), ``trial`` (also named ``test`` or ``run``; a
+    label read as text, even where it is a number: time restarts in each trial),
+    ``time_s``, ``direction`` (+1 contracting, -1 extending), ``temperature_C``, ``cycle``
+    (whole numbers).
 Others:
     Any further column whose cells are all numbers is kept as a covariate; any further
     column holding text (a ``note``, say) is kept unchanged but is not a covariate.
 
-A column whose name starts with a known quantity (``pressure``, ``force``, ``length``,
-``l0``, ``contraction``, ``time``, ``temperature``, ``velocity``) must carry one of that
-quantity's accepted units; ``force_kN`` or ``time_ms`` are errors rather than silently
-ignored columns.
+Headers as labs write them (``Pressure [kPa]``, ``force (N)``, ``p / bar``, ``Force_N``,
+``Temperature [°C]``, ``T_C``, ...) are mapped to these names (see :mod:`._names`), and
+``columns={"Druck": "pressure_bar"}`` maps any other naming. A column named after a known
+quantity (``pressure``, ``force``, ``length``, ``l0``, ``contraction``, ``time``,
+``temperature``, ``velocity``) must carry one of that quantity's accepted units;
+``force_kN`` or ``Time [ms]`` are errors rather than silently ignored columns.
+
+Blank cells
+-----------
+A blank cell (a null in Parquet, an empty cell in a spreadsheet) of ``time_s``,
+``direction``, ``temperature_C``, ``cycle`` or a numeric covariate means "not recorded": it
+becomes NaN in the frame (``direction`` and ``cycle`` are then float64), and one
+:class:`MissingValuesWarning` says how many cells of which columns were blank. Blank cells
+of the required columns, and NaN written as such, are errors.
 
 Reading CSV
 -----------
-A plain CSV file (comma-separated, header on line 1, no quotes, no blank lines, no
-ragged rows, numbers written plainly) is read column by column with pyarrow; every other file,
-and every file with a problem, is read cell by cell with Python's csv module, which reports
-the problem. Both give the same result, to the bit.
+The delimiter (comma, semicolon or tab: the one the header holds most of) and the decimal
+mark (a comma in a semicolon- or tab-separated file whose numbers are written ``499,911``,
+as Excel writes them in most of Europe) are detected; ``sep=`` and ``decimal=`` override
+them. A plain file (header on line 1, no quotes, no blank lines, no ragged rows, numbers
+written plainly) is read column by column with pyarrow; every other file, and every file
+with a problem, is read cell by cell with Python's csv module, which reports the problem.
+Both give the same result, to the bit.
+
+Reading spreadsheets
+--------------------
+``.xlsx`` (and ``.xlsm``, ``.xlsb``, ``.xls``, ``.ods``) are read with python-calamine
+(:mod:`._spreadsheet`), the first sheet unless ``sheet=`` names one. Number cells are
+numbers and text cells text; a date or time cell in a numeric column is an error (write
+times as seconds), in a label or text column it is kept as ISO text.
 
 Censoring
 ---------
@@ -47,9 +70,11 @@ from __future__ import annotations
 
 import codecs
 import csv
+import functools
 import io
 import math
 import os
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,8 +84,9 @@ import pandas as pd
 
 from .._errors import BenchDataError
 from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_text_to_kPa, pressure_to_kPa
+from ._names import NameProblem, canonical_names
 
-__all__ = ["BenchData", "CensoredRowsWarning", "load_bench"]
+__all__ = ["BenchData", "CensoredRowsWarning", "MissingValuesWarning", "load_bench"]
 
 #: Accepted units for each quantity that bench-file column names may start with.
 QUANTITY_UNITS: dict[str, tuple[str, ...]] = {
@@ -77,16 +103,41 @@ QUANTITY_UNITS: dict[str, tuple[str, ...]] = {
 PRESSURE_COLUMNS: dict[str, str] = {f"pressure_{unit}": unit for unit in PRESSURE_UNITS}
 #: Physical range of the contraction, in percent of the nominal length.
 CONTRACTION_RANGE_PCT: tuple[float, float] = (-10.0, 50.0)
-#: Extensions read as Parquet; every other extension is read as CSV.
+#: Extensions read as Parquet; spreadsheets are listed in ``_spreadsheet``; every other
+#: extension is read as CSV.
 PARQUET_SUFFIXES: tuple[str, ...] = (".parquet", ".pq")
+#: Delimiters detected in a CSV header, in order of preference when it holds as many of each.
+CSV_DELIMITERS: tuple[str, ...] = (",", ";", "\t")
+#: Decimal marks a CSV file may use.
+DECIMAL_MARKS: tuple[str, ...] = (".", ",")
 
 # Canonical optional columns, in the order they appear in BenchData.frame.
 _OPTIONAL_NUMERIC = ("time_s", "direction", "temperature_C", "cycle", "length_mm", "l0_mm")
+# Quantities whose cells must all be numbers; a blank cell of any other numeric column
+# (time, temperature, direction, cycle, covariates) means "not recorded".
+_STRICT_QUANTITIES = ("pressure", "force", "contraction", "length", "l0")
+# Columns read as labels (text), never as numbers.
+_LABELS = ("muscle", "trial")
 _RESERVED = ("source_row",)
+# A cell written with a decimal comma, e.g. 499,911 or -1,5E-03.
+_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+# Swaps the decimal comma and the point: a decimal-comma cell then reads as Python reads
+# numbers, and one written with a point does not read at all (it would be ambiguous).
+_SWAP_MARKS = str.maketrans({",": ".", ".": ","})
 
 
 class CensoredRowsWarning(UserWarning):
     """Rows with a force of exactly 0 N (censored points of a force map) were dropped."""
+
+
+class MissingValuesWarning(UserWarning):
+    """Blank cells of optional numeric columns were read as "not recorded" (NaN).
+
+    ``counts`` maps each such column, as the file names it, to its number of blank cells."""
+
+    def __init__(self, message: str, counts: dict[str, int] | None = None):
+        super().__init__(message)
+        self.counts = dict(counts or {})
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,13 +147,16 @@ class BenchData:
     Attributes
     ----------
     frame:
-        One row per kept sample. Columns: ``muscle`` (str), ``pressure_kPa`` (gauge pressure,
-        kPa), ``contraction_pct`` (%, positive when shorter than l0) and ``contraction_mm``
+        One row per kept sample, in file order. Columns: ``muscle`` (str), ``trial`` (str,
+        where the file gives one), ``pressure_kPa`` (gauge pressure, kPa),
+        ``contraction_pct`` (%, positive when shorter than l0) and ``contraction_mm``
         (the contraction as a length, Cullinan's y) where each is given or derivable with
-        l0, ``force_N`` (N), all float64 apart from ``muscle``; then those of ``time_s``
+        l0, ``force_N`` (N), all float64 apart from the labels; then those of ``time_s``
         (s), ``direction`` (int, +1 or -1), ``temperature_C`` (deg C), ``cycle`` (int),
         ``length_mm`` (mm) and ``l0_mm`` (mm) that are known; then the covariates and any
-        text columns as given; last ``source_row``, the 1-based data row of the sample in the file.
+        text columns as given; last ``source_row``, the 1-based data row of the sample in the
+        file. Blank cells of the optional numeric columns are NaN (``direction`` and
+        ``cycle`` are then float64).
     path:
         The file, as given to :func:`load_bench`.
     has_muscle_column:
@@ -128,6 +182,14 @@ class BenchData:
     covariates: tuple[str, ...] = ()
     n_censored: int = 0
     pressure_unit_in_file: str = "kPa"
+
+    @functools.cached_property
+    def curves(self):
+        """The file's curves, direction, trials and repeats (:func:`pamid._data._curves.
+        find_curves`), aligned with :attr:`frame`; found once and kept."""
+        from ._curves import find_curves
+
+        return find_curves(self.frame)
 
     def groups(self):
         """(muscle id, its rows with a fresh index) for every muscle, in order, in one pass
@@ -170,6 +232,10 @@ class _Column:
     null: np.ndarray | None = None
     original: object = None
     parsed: np.ndarray | None = None  # float64 values of a text column, once checked
+    decimal: str = "."  # the decimal mark of numbers written in ``text``
+    null_word: str = "missing value (null)"  # what a null is called in messages
+    # Spreadsheets: rows whose cell cannot be a number whatever its text (a date), and why.
+    problems: dict[int, str] | None = None
     # Set only by the fast CSV reader, which has checked and converted the column already:
     numeric: bool | None = None  # an extra column: numeric covariate (True) or text (False)
     kpa: np.ndarray | None = None  # a pressure column: kPa, converted exactly from the text
@@ -185,6 +251,17 @@ class _Column:
         value = float(self.values[i])
         return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
 
+    def number_text(self) -> list[str]:
+        """The text cells as Python reads numbers (the decimal mark made a point)."""
+        return _point(self.text, self.decimal)
+
+    def blank(self) -> np.ndarray:
+        """Which cells are blank (empty text, or null)."""
+        if self.text is not None:
+            return np.fromiter((cell == "" for cell in self.text), dtype=bool,
+                               count=len(self.text))
+        return np.asarray(self.null, dtype=bool)
+
 
 @dataclass
 class _Table:
@@ -192,20 +269,51 @@ class _Table:
     names: list[str]
     columns: dict[str, _Column]
     n_rows: int
-    lines: list[int] | None  # file line of each data row (CSV only)
+    lines: list[int] | None  # file line of each data row (CSV), sheet row (spreadsheets)
     is_csv: bool
     first_line: int | None = None  # fast CSV path: data row i (0-based) is on line i + first_line
+    canonical: bool = False  # whether ``names`` are pamid's names already
+    file_names: dict[str, str] = field(default_factory=dict)  # name -> header in the file
+    sheet: str | None = None  # spreadsheets: the sheet read ...
+    letters: dict[str, str] | None = None  # ... and each column's letter(s) there
 
     def error(self, message: str, *, column: str | None = None, index: int | None = None):
         """A BenchDataError for data row ``index`` (0-based) of ``column``."""
-        row = line = None
+        row = line = cell = None
         if index is not None:
             row = int(index) + 1
             if self.lines is not None:
                 line = self.lines[int(index)]
             elif self.first_line is not None:
                 line = int(index) + self.first_line
-        return BenchDataError(self.path, message, column=column, row=row, line=line)
+        if self.sheet is not None and line is not None:
+            letter = (self.letters or {}).get(column) if column is not None else None
+            cell = f"{letter}{line}" if letter else None
+            line = None
+        if column is not None:
+            column = self.file_names.get(column, column)
+        return BenchDataError(self.path, message, column=column, row=row, line=line,
+                              sheet=self.sheet, cell=cell)
+
+    def rename(self, columns: dict[str, str] | None) -> None:
+        """Give the columns pamid's names (see :mod:`._names`), keeping the file's headers
+        for messages. Errors for a mapped header the file lacks, or two headers that mean
+        the same column."""
+        if self.canonical:
+            return
+        try:
+            names = canonical_names(self.names, QUANTITY_UNITS, columns)
+        except NameProblem as problem:
+            raise self.error(problem.message, column=problem.column) from None
+        self.file_names = {new: old for new, old in zip(names, self.names, strict=True)
+                           if new != old}
+        self.columns = {new: self.columns[old] for new, old in zip(names, self.names,
+                                                                   strict=True)}
+        if self.letters is not None:
+            self.letters = {new: self.letters[old] for new, old in zip(names, self.names,
+                                                                       strict=True)}
+        self.names = names
+        self.canonical = True
 
 
 def _looks_binary(data: bytes) -> bool:
@@ -217,18 +325,35 @@ def _looks_binary(data: bytes) -> bool:
     return control > 0.05 * len(head)
 
 
-def _detect_delimiter(text: str) -> str:
-    """Comma unless the first non-blank line has none but has semicolons or tabs."""
-    for line in text.splitlines():
-        if line.strip():
-            if "," in line:
-                return ","
-            if ";" in line:
-                return ";"
-            if "\t" in line:
-                return "\t"
-            return ","
-    return ","
+def _csv_dialect(data: bytes, sep: str | None, decimal: str | None) -> tuple[str, str]:
+    """The delimiter and the decimal mark of a CSV file: those given, else detected.
+
+    Delimiter: the one of :data:`CSV_DELIMITERS` (other than a given decimal mark) the
+    header (first non-blank line) holds most of; the first of them when it holds none.
+    Decimal mark: a comma when the delimiter is not and a cell of the first 200 data lines
+    is written like ``499,911``; else a point. Both readers detect from the same bytes, so
+    they agree."""
+    if sep is not None and decimal is not None:
+        return sep, decimal
+    size = 1 << 16
+    head = data[:size].decode("utf-8", errors="replace").lstrip("\ufeff")
+    lines = [line for line in head.splitlines() if line.strip()]
+    if len(data) > size and len(lines) > 1:
+        lines.pop()  # possibly cut short
+    if sep is None:
+        header = lines[0] if lines else ""
+        candidates = [d for d in CSV_DELIMITERS if d != decimal]  # a decimal comma: not ","
+        counts = [header.count(d) for d in candidates]
+        sep = candidates[counts.index(max(counts))] if max(counts) else candidates[0]
+    if decimal is None:
+        decimal = "."
+        if sep != ",":
+            for line in lines[1:201]:
+                cells = (cell.strip().strip('"') for cell in line.split(sep))
+                if any(_DECIMAL_COMMA.fullmatch(cell) for cell in cells):
+                    decimal = ","
+                    break
+    return sep, decimal
 
 
 def _read_bytes(path: Path, shown: str) -> bytes:
@@ -259,19 +384,22 @@ def _read_csv_bytes(path: Path, shown: str) -> bytes:
     return data
 
 
-def _read_csv(path: Path, shown: str) -> _Table:
+def _read_csv(
+    path: Path, shown: str, *, sep: str | None = None, decimal: str | None = None
+) -> _Table:
     """Read a CSV file cell by cell, keeping the file line of every data row.
 
     This is the reference reader: it reads every file pamid reads as CSV and words every
-    problem.
+    problem. ``sep`` and ``decimal`` default to those detected (:func:`_csv_dialect`).
     """
     data = _read_csv_bytes(path, shown)
+    sep, decimal = _csv_dialect(data, sep, decimal)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         text = data.decode("latin-1")  # legacy single-byte files; never fails
 
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=_detect_delimiter(text))
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep)
     header: list[str] | None = None
     header_line = 0
     records: list[list[str]] = []
@@ -315,7 +443,7 @@ def _read_csv(path: Path, shown: str) -> _Table:
     columns = {}
     for j, name in enumerate(header):
         cells = [record[j] for record in records]
-        columns[name] = _Column(name, text=cells, original=cells)
+        columns[name] = _Column(name, text=cells, original=cells, decimal=decimal)
     return _Table(shown, list(header), columns, len(records), lines, is_csv=True)
 
 
@@ -340,26 +468,32 @@ def _check_duplicates(shown: str, names: list[str]) -> None:
 #: CSV file goes through the cell-by-cell reader (tests and benchmarks compare the two).
 _FAST_CSV = True
 
-#: Bytes a plain decimal number is written with.
+#: Bytes a plain decimal number is written with, for each decimal mark.
 _NUMBER_BYTES = np.zeros(256, dtype=bool)
 _NUMBER_BYTES[np.frombuffer(b"0123456789+-.eE", dtype=np.uint8)] = True
+_NUMBER_BYTES_COMMA = np.zeros(256, dtype=bool)
+_NUMBER_BYTES_COMMA[np.frombuffer(b"0123456789+-,eE", dtype=np.uint8)] = True
 
 
-def _plain_numbers(chunked) -> np.ndarray | None:
+def _plain_numbers(chunked, decimal: str = ".", blanks: bool = False) -> np.ndarray | None:
     """Float64 values of a pyarrow string column whose every cell is a plain decimal number.
 
-    A cell qualifies if it is written with the characters ``0-9 + - . e E`` only and pyarrow
-    parses it as a finite number. Such a cell is in the syntax of Python's ``float()`` (what
-    the cell-by-cell reader uses), and both round the decimal value to the nearest float64,
-    so the two readers give the same number. None if any cell does not qualify (an empty
-    cell, blanks, an underscore, 'nan', '1e', text, ...).
+    A cell qualifies if it is written with the characters ``0-9 + - . e E`` only (a comma
+    for the point when ``decimal`` is ``","``) and pyarrow parses it as a finite number.
+    Such a cell is in the syntax of Python's ``float()`` (what the cell-by-cell reader uses,
+    once the decimal comma is made a point), and both round the decimal value to the
+    nearest float64, so the two readers give the same number. With ``blanks``, an empty
+    cell qualifies too and gives NaN (no other cell can). None if any cell does not
+    qualify (an empty cell, blanks, an underscore, 'nan', '1e', text, ...).
     """
     import pyarrow as pa
     import pyarrow.compute as pc
 
+    allowed = _NUMBER_BYTES if decimal == "." else _NUMBER_BYTES_COMMA
     step = 1 << 20
     ok = np.empty(step, dtype=bool)  # reused, so that the check allocates nothing big
     values = np.empty(len(chunked), dtype=np.float64)
+    blank = np.zeros(len(chunked), dtype=bool) if blanks else None
     at = 0
     for chunk in chunked.chunks:
         if chunk.null_count or chunk.type != pa.string():
@@ -370,15 +504,24 @@ def _plain_numbers(chunked) -> np.ndarray | None:
         text = np.frombuffer(data, dtype=np.uint8) if stop > start else None
         for k in range(start, stop, step):
             part = text[k : min(k + step, stop)]
-            if not np.take(_NUMBER_BYTES, part, out=ok[: len(part)]).all():
+            if not np.take(allowed, part, out=ok[: len(part)]).all():
                 return None
+        empty = None
+        if blanks:
+            empty = np.diff(offsets[chunk.offset : chunk.offset + len(chunk) + 1]) == 0
+            blank[at : at + len(chunk)] = empty
+        if decimal != ".":
+            chunk = pc.replace_substring(chunk, ",", ".")
+        if empty is not None and empty.any():
+            chunk = pc.if_else(pa.array(empty), pa.scalar(None, pa.string()), chunk)
         try:
             floats = pc.cast(chunk, pa.float64())
         except (pa.ArrowException, ValueError):
             return None
         values[at : at + len(chunk)] = floats.to_numpy(zero_copy_only=False)
         at += len(chunk)
-    if not np.isfinite(values).all():
+    finite = np.isfinite(values)
+    if not (finite.all() if blank is None else (finite | blank).all()):
         return None
     return values
 
@@ -418,43 +561,69 @@ def _is_utf8(data: bytes) -> bool:
     return True
 
 
-def _fast_column(name: str, chunked, n: int) -> _Column | None:
+def _point(cells, decimal: str):
+    """Cells written with ``decimal`` as Python reads numbers (a decimal comma made a point,
+    and a point made a comma, so that a cell with a point does not read as a number)."""
+    return cells if decimal == "." else [cell.translate(_SWAP_MARKS) for cell in cells]
+
+
+def _blank_ok(name: str) -> bool:
+    """Whether a blank cell of this numeric column (pamid's name) means "not recorded"."""
+    return name not in _LABELS and _quantity_of(name) not in _STRICT_QUANTITIES
+
+
+def _fast_column(name: str, chunked, n: int, decimal: str = ".") -> _Column | None:
     """One column for the fast reader, or None if the cell-by-cell reader must read the file."""
-    if name == "muscle":
+    if name in _LABELS:
         codes, uniques = _factorize_text(chunked)
         return _Column(name, codes=codes, uniques=uniques)
-    no_nulls = np.broadcast_to(False, (n,))
-    values = _plain_numbers(chunked)
+    blanks = _blank_ok(name)
+    known = name in ("direction", "cycle") or _quantity_of(name) is not None
+    values = _plain_numbers(chunked, decimal, blanks)
     if values is not None:
-        column = _Column(name, values=values, null=no_nulls, parsed=values)
-        if name in PRESSURE_COLUMNS and PRESSURE_COLUMNS[name] != "kPa":
-            codes, uniques = _factorize_text(chunked)
-            column.kpa = pressure_text_to_kPa(uniques, PRESSURE_COLUMNS[name])[codes]
-        return column
-    if name in ("direction", "cycle") or _quantity_of(name) is not None:
+        null = np.isnan(values) if blanks else np.broadcast_to(False, (n,))
+        if known or not null.all():  # an extra column with no number is text
+            column = _Column(name, values=values, null=null, parsed=values)
+            if name in PRESSURE_COLUMNS and PRESSURE_COLUMNS[name] != "kPa":
+                codes, uniques = _factorize_text(chunked)
+                kpa = pressure_text_to_kPa(_point(uniques, decimal), PRESSURE_COLUMNS[name])
+                column.kpa = kpa[codes]
+            return column
+    if known:
         return None  # a quantity that is not all plain numbers
     codes, uniques = _factorize_text(chunked)
-    if not _all_numbers(uniques):  # text, kept as it is
+    numbers = _point(uniques, decimal)
+    if not _all_numbers(numbers):  # text, kept as it is
         column = _Column(name, codes=codes, uniques=uniques, numeric=False)
         column.original = _text_values(uniques, codes)
         return column
-    if any(_number_problem(cell) is not None for cell in uniques):
+    if any(_number_problem(cell) is not None for cell in numbers if cell or not blanks):
         return None  # a numeric covariate with a problem
-    parsed = np.array([float(cell) for cell in uniques], dtype=np.float64)[codes]
-    return _Column(name, values=parsed, null=no_nulls, parsed=parsed)
+    parsed = np.array([float(cell) if cell else np.nan for cell in numbers])[codes]
+    null = (uniques == "")[codes]
+    return _Column(name, values=parsed, null=null, parsed=parsed)
 
 
-def _read_csv_fast(path: Path, shown: str) -> _Table | None:
+def _read_csv_fast(
+    path: Path,
+    shown: str,
+    *,
+    sep: str | None = None,
+    decimal: str | None = None,
+    columns: dict[str, str] | None = None,
+) -> _Table | None:
     """Read a plain CSV file column by column with pyarrow, or return None.
 
-    Plain: comma-separated with the header on line 1, its names distinct and non-empty; no
-    quote characters, NUL bytes, lone carriage returns or blank lines (blank lines at the
-    end aside); every row with exactly as many cells as the header has names; every cell of
-    a numeric column a plain decimal number (see :func:`_plain_numbers`). Data row i is then
-    on line i + 1 and every cell reads as the cell-by-cell reader reads it. For any other
-    file (not UTF-8, say), or any cell in doubt, the answer is None and the cell-by-cell
-    reader takes over; it also words every problem, so messages do not depend on which
-    reader ran.
+    Plain: the header on line 1, its names distinct and non-empty and free of problems (see
+    :meth:`_Table.rename`, which ``columns`` feeds); no quote characters, NUL bytes, lone
+    carriage returns or blank lines (blank lines at the end aside); every row with exactly
+    as many cells as the header has names; every cell of a numeric column a plain decimal
+    number (see :func:`_plain_numbers`), or blank where a blank means "not recorded". The
+    delimiter and decimal mark are those of :func:`_csv_dialect`. Data row i is then on
+    line i + 1 and every cell reads as the cell-by-cell reader reads it. For any other file
+    (not UTF-8, say), or any cell in doubt, the answer is None and the cell-by-cell reader
+    takes over; it also words every problem, so messages do not depend on which reader ran.
+    The columns have pamid's names (the file's headers in ``file_names``).
     """
     import pyarrow as pa
     import pyarrow.csv as pa_csv
@@ -464,6 +633,7 @@ def _read_csv_fast(path: Path, shown: str) -> _Table | None:
         return None
     if b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
         return None  # a lone carriage return
+    sep, decimal = _csv_dialect(data, sep, decimal)
     header_end = data.find(b"\n")
     if header_end < 0:
         return None
@@ -476,10 +646,14 @@ def _read_csv_fast(path: Path, shown: str) -> _Table | None:
         header = data[:header_end].rstrip(b"\r").decode("utf-8-sig")
     except UnicodeDecodeError:
         return None
-    if "," not in header or not header.isprintable():
+    if sep not in header or not header.replace("\t", " ").isprintable():
         return None
-    names = [name.strip() for name in header.split(",")]
+    names = [name.strip() for name in header.split(sep)]
     if not all(names) or len(set(names)) != len(names):
+        return None
+    try:
+        canonical = canonical_names(names, QUANTITY_UNITS, columns)
+    except NameProblem:
         return None
 
     keys = [f"c{j}" for j in range(len(names))]
@@ -491,7 +665,7 @@ def _read_csv_fast(path: Path, shown: str) -> _Table | None:
             pa.BufferReader(body),
             read_options=pa_csv.ReadOptions(column_names=keys, block_size=1 << 24),
             parse_options=pa_csv.ParseOptions(
-                delimiter=",",
+                delimiter=sep,
                 quote_char=False,
                 double_quote=False,
                 escape_char=False,
@@ -513,18 +687,20 @@ def _read_csv_fast(path: Path, shown: str) -> _Table | None:
     if n != n_lines:
         return None
 
-    columns: dict[str, _Column] = {}
-    for key, name in zip(keys, names, strict=True):
+    table_columns: dict[str, _Column] = {}
+    for key, name in zip(keys, canonical, strict=True):
         chunked = arrow.column(key)
         arrow = arrow.drop_columns([key])  # memory: the column goes once converted
         try:
-            column = _fast_column(name, chunked, n)
+            column = _fast_column(name, chunked, n, decimal)
         except pa.ArrowException:  # e.g. a text column too large to combine into one array
             return None
         if column is None:
             return None
-        columns[name] = column
-    return _Table(shown, names, columns, n, None, is_csv=True, first_line=2)
+        table_columns[name] = column
+    file_names = {new: old for new, old in zip(canonical, names, strict=True) if new != old}
+    return _Table(shown, canonical, table_columns, n, None, is_csv=True, first_line=2,
+                  canonical=True, file_names=file_names)
 
 
 def _read_parquet(path: Path, shown: str) -> _Table:
@@ -619,8 +795,12 @@ def _check_units(table: _Table, quantities=None) -> None:
         )
 
 
-def _number_problem(cell: str) -> str | None:
-    """Why a text cell is not a finite number, or None if it is one."""
+def _number_problem(cell: str, decimal: str = ".", shown: str | None = None) -> str | None:
+    """Why a text cell is not a finite number, or None if it is one.
+
+    ``cell`` is as Python reads numbers (see :func:`_point`); ``shown`` is the cell as the
+    file writes it (the same unless the decimal mark is a comma)."""
+    shown = cell if shown is None else shown
     if cell == "":
         return "empty cell; a number is required here"
     try:
@@ -628,50 +808,70 @@ def _number_problem(cell: str) -> str | None:
             raise ValueError
         value = float(cell)
     except ValueError:
-        return f"'{cell}' is not a number"
+        if decimal != "." and "." in shown:
+            return (f"'{shown}' is not a number with the decimal mark ',' this file uses "
+                    "(pass decimal='.', --decimal . on the command line, if the point is "
+                    "the decimal mark)")
+        return f"'{shown}' is not a number"
     if math.isnan(value):
-        return f"'{cell}' is NaN; a measured number is required here"
+        return f"'{shown}' is NaN; a measured number is required here"
     if math.isinf(value):
-        return f"'{cell}' is infinite; a finite number is required here"
+        return f"'{shown}' is infinite; a finite number is required here"
     return None
 
 
-def _first_problem(col: _Column) -> tuple[int, str] | None:
-    """The first row of ``col`` that is not a finite number, with the reason."""
+def _first_problem(col: _Column, blank_ok: bool = False) -> tuple[int, str] | None:
+    """The first row of ``col`` that is not a finite number, with the reason. With
+    ``blank_ok``, blank cells (empty or null) are no problem: they are not recorded."""
     if col.parsed is not None:
         return None  # checked already
     if col.text is not None:
+        cells = col.number_text()
+        blank = col.blank() if blank_ok else None
+        skip = blank is not None and bool(blank.any())
         # Fast path: numpy parses the whole column; the slow loop only finds the bad cell.
-        try:
-            if "_" not in "".join(col.text):
-                parsed = np.array(col.text, dtype=np.float64)
-                if np.isfinite(parsed).all():
-                    col.parsed = parsed
-                    return None
-        except ValueError:
-            pass
-        for i, cell in enumerate(col.text):
-            problem = _number_problem(cell)
+        if not col.problems:
+            try:
+                if "_" not in "".join(cells):
+                    parsed = np.array([c or "nan" for c in cells] if skip else cells,
+                                      dtype=np.float64)
+                    finite = np.isfinite(parsed)
+                    if (finite | blank).all() if skip else finite.all():
+                        col.parsed = parsed
+                        return None
+            except ValueError:
+                pass
+        for i, cell in enumerate(cells):
+            if skip and blank[i]:
+                continue
+            if col.problems and i in col.problems:
+                return i, col.problems[i]
+            problem = _number_problem(cell, col.decimal, col.text[i])
             if problem is not None:
                 return i, problem
         return None
-    bad = col.null | ~np.isfinite(col.values)
+    null = np.asarray(col.null, dtype=bool)
+    bad = ~np.isfinite(col.values) & ~null
+    if not blank_ok:
+        bad |= null
     if not bad.any():
         return None
     i = int(np.argmax(bad))
-    if col.null[i]:
-        return i, "missing value (null); a number is required here"
+    if null[i]:
+        return i, f"{col.null_word}; a number is required here"
     if np.isnan(col.values[i]):
         return i, "NaN; a measured number is required here"
     return i, f"{col.raw(i)} is infinite; a finite number is required here"
 
 
 def _as_floats(col: _Column) -> np.ndarray:
-    """Float64 values of a column already known to hold only finite numbers."""
+    """Float64 values of a column already checked by :func:`_first_problem` (NaN where a
+    cell is blank)."""
     if col.parsed is not None:
         return col.parsed  # made for this column by the reader or by _first_problem
     if col.text is not None:
-        return np.array([float(cell) for cell in col.text], dtype=np.float64)
+        return np.array([float(cell) if cell else np.nan for cell in col.number_text()],
+                        dtype=np.float64)
     return col.values.astype(np.float64, copy=True)
 
 
@@ -685,7 +885,9 @@ def _is_numeric_extra(col: _Column) -> bool:
         return col.numeric
     if col.text is None:
         return True
-    return _all_numbers(col.text)
+    if col.problems:
+        return False
+    return _all_numbers(col.number_text())
 
 
 def _all_numbers(cells) -> bool:
@@ -708,7 +910,7 @@ def _check_missing(table: _Table, missing: list[str], n_required: int, kind: str
     table with a header but no rows. ``kind`` names the table ("bench", "decay") in the
     message used when none of the ``n_required`` columns is there."""
     if missing:
-        names = table.names
+        names = [table.file_names.get(name, name) for name in table.names]
         found = ", ".join(names) if names else "none"
         lead = "missing required column" + ("s" if len(missing) > 1 else "")
         if len(missing) == n_required:
@@ -752,22 +954,89 @@ def _check_required(table: _Table, l0_arg: float | None) -> str:
     return pressures[0]
 
 
+def _labels(table: _Table, name: str, what: str):
+    """A label column (muscle, trial) as ``(codes, uniques, ids)``: the label of row i is
+    ``uniques[codes[i]]`` (distinct, in order of first appearance), ``ids`` the list of
+    every row's label where the reader gave text (else None). Labels are text, even where
+    the cells are numbers; an empty one is an error."""
+    col = table.columns[name]
+    ids: list[str] | None = None
+    if col.codes is not None:
+        codes, uniques = col.codes, col.uniques
+        missing = (uniques == "")[codes]
+    else:
+        if col.text is not None:
+            ids = list(col.text)
+            missing = np.asarray([cell == "" for cell in ids], dtype=bool)
+        else:
+            ids = [col.raw(i) for i in range(table.n_rows)]
+            missing = np.asarray(col.null, dtype=bool)
+        codes, uniques = pd.factorize(np.asarray(ids, dtype=object))
+        uniques = np.asarray(uniques, dtype=object)
+    i = _first_true(missing)
+    if i is not None:
+        raise table.error(f"empty {what}; every row needs one", column=name, index=i)
+    return codes, uniques, ids
+
+
+def _row_ranges(rows: np.ndarray, most: int = 3) -> str:
+    """1-based rows as ranges, e.g. "3-1202, 1500", the first ``most`` ranges only."""
+    starts = np.flatnonzero(np.diff(rows, prepend=-2) != 1)
+    ends = np.append(starts[1:], len(rows)) - 1
+    parts = [f"{rows[a] + 1}" if a == b else f"{rows[a] + 1}-{rows[b] + 1}"
+             for a, b in zip(starts[:most], ends[:most], strict=True)]
+    return ", ".join(parts) + (", …" if len(starts) > most else "")
+
+
+def _blank_cells_message(table, blanks: dict, codes, uniques, has_muscle: bool) -> str:
+    """The :class:`MissingValuesWarning` text: how many cells of which columns were blank,
+    on which rows and of which muscles."""
+    parts = []
+    for k, (name, mask) in enumerate(blanks.items()):
+        rows = np.flatnonzero(mask)
+        count = len(rows)
+        noun = ("blank cell" if count == 1 else "blank cells") if k == 0 else ""
+        where = f"row{'s' if count > 1 else ''} {_row_ranges(rows)}"
+        if has_muscle:
+            muscles = uniques[pd.unique(codes[rows])].tolist()
+            shown = ", ".join(repr(m) for m in muscles[:3])
+            more = f" and {len(muscles) - 3} more" if len(muscles) > 3 else ""
+            where += f", muscle{'s' if len(muscles) > 1 else ''} {shown}{more}"
+        column = table.file_names.get(name, name)
+        parts.append(f"{count:,} {noun + ' ' if noun else ''}in {column} ({where})")
+    text = f"{table.path}: {' and '.join(parts)}: treated as not recorded"
+    if "direction" in blanks:
+        text += "; direction is derived from the data there"
+    return text
+
+
 def _first_true(mask: np.ndarray) -> int | None:
     return int(np.argmax(mask)) if mask.any() else None
 
 
 def _check_time_increases(
-    table, time_raw, time, codes, names, group: str, has_group: bool
+    table, time_raw, time, codes, names, group: str, has_group: bool, *, blank=None,
+    described: bool = False
 ) -> None:
     """Time must increase strictly within each group (muscle, trial): error at the first row
     where it does not, naming the earlier row it fails against. ``codes`` are integer group
     codes per row, ``names`` the group name per code, ``group`` the word for a group;
-    ``has_group`` False when the file has no group column (one group)."""
-    previous = _previous_rows(codes)
+    ``has_group`` False when the file has no group column (one group). Rows marked in
+    ``blank`` (time not recorded) are skipped. With ``described``, ``names`` are whole
+    descriptions ("muscle 'A', trial 'T2'") rather than bare names."""
+    if blank is not None and blank.any():
+        kept = np.flatnonzero(~blank)
+        previous_kept = _previous_rows(codes[kept])
+        previous = np.full(len(codes), -1, dtype=np.int64)
+        previous[kept] = np.where(previous_kept >= 0, kept[np.maximum(previous_kept, 0)], -1)
+    else:
+        previous = _previous_rows(codes)
     i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
     if i is not None:
         j = int(previous[i])
-        whose = f" of {group} '{names[codes[i]]}'" if has_group else ""
+        whose = ""
+        if has_group:
+            whose = f" of {names[codes[i]]}" if described else f" of {group} '{names[codes[i]]}'"
         raise table.error(
             f"time_s {time_raw(i)} s is not later than {time_raw(j)} s "
             f"on row {j + 1}{whose}; time must increase strictly within a {group}",
@@ -795,14 +1064,19 @@ def load_bench(
     *,
     l0_mm: float | None = None,
     keep_censored: bool = False,
+    sep: str | None = None,
+    decimal: str | None = None,
+    sheet: str | None = None,
+    columns: dict[str, str] | None = None,
 ) -> BenchData:
-    """Load a bench file (CSV or Parquet) of pneumatic-muscle measurements.
+    """Load a bench file (CSV, Parquet or a spreadsheet) of pneumatic-muscle measurements.
 
     Parameters
     ----------
     path:
-        The file. ``.parquet`` and ``.pq`` are read as Parquet, anything else as CSV
-        (comma-separated; semicolon or tab when the header has no comma).
+        The file. ``.parquet`` and ``.pq`` are read as Parquet; ``.xlsx``, ``.xlsm``,
+        ``.xlsb``, ``.xls`` and ``.ods`` as spreadsheets; anything else as CSV (comma-,
+        semicolon- or tab-separated, as the header shows).
     l0_mm:
         Nominal (unpressurised, uncontracted) muscle length in mm, for files that give
         ``length_mm`` but neither ``contraction_pct`` nor an ``l0_mm`` column. If the file has
@@ -811,6 +1085,18 @@ def load_bench(
         Keep rows with a force of exactly 0 N. By default they are dropped with a
         :class:`CensoredRowsWarning`, because force maps use 0 to mark lengths the muscle
         cannot hold.
+    sep:
+        CSV only: the delimiter (``","``, ``";"``, ``"\\t"`` or ``"tab"``, or any other
+        single character); detected from the header by default.
+    decimal:
+        The decimal mark of numbers written as text, ``"."`` or ``","``; for CSV detected
+        by default (a comma in a semicolon- or tab-separated file whose numbers read like
+        ``499,911``).
+    sheet:
+        Spreadsheets only: the name of the sheet to read (default: the first).
+    columns:
+        Maps headers of the file to pamid's names, e.g. ``{"Druck": "pressure_bar",
+        "Kraft": "force_N"}``, for namings pamid does not recognise by itself.
 
     Returns
     -------
@@ -821,8 +1107,16 @@ def load_bench(
     ------
     BenchDataError
         For any problem with the file; the message names the file and, where it applies,
-        the column and the 1-based data row (and the file line, for CSV).
+        the column and the 1-based data row (and the file line for CSV, the sheet and cell
+        for a spreadsheet).
+
+    Warns
+    -----
+    CensoredRowsWarning, MissingValuesWarning
+        Censored rows dropped; blank cells of optional columns read as not recorded.
     """
+    from ._spreadsheet import SPREADSHEET_SUFFIXES, read_spreadsheet
+
     shown = str(path)
     p = Path(path)
     if l0_mm is not None:
@@ -836,18 +1130,60 @@ def load_bench(
             )
     else:
         l0_value = None
+    sep = _check_reading_options(shown, sep, decimal, columns)
 
-    if p.suffix.lower() in PARQUET_SUFFIXES:
-        return _interpret(_read_parquet(p, shown), l0_value, keep_censored)
-    if _FAST_CSV:
-        table = _read_csv_fast(p, shown)
-        if table is not None:
-            try:
-                return _interpret(table, l0_value, keep_censored)
-            except BenchDataError:
-                pass  # the cell-by-cell reader finds the problem again and words it exactly
-            del table
-    return _interpret(_read_csv(p, shown), l0_value, keep_censored)
+    suffix = p.suffix.lower()
+    kind = ("parquet" if suffix in PARQUET_SUFFIXES else
+            "spreadsheet" if suffix in SPREADSHEET_SUFFIXES else "csv")
+    if sheet is not None and kind != "spreadsheet":
+        raise BenchDataError(shown, f"sheet={sheet!r} (--sheet) applies to spreadsheets "
+                                    f"({', '.join(SPREADSHEET_SUFFIXES)}) only")
+    if sep is not None and kind != "csv":
+        raise BenchDataError(shown, f"sep={sep!r} (--sep) applies to CSV files only")
+    if kind == "parquet":
+        if decimal is not None:
+            raise BenchDataError(shown, "decimal= (--decimal) applies to CSV files and "
+                                        "spreadsheets only")
+        table = _read_parquet(p, shown)
+    elif kind == "spreadsheet":
+        table = read_spreadsheet(p, shown, sheet=sheet, decimal=decimal or ".")
+    else:
+        if _FAST_CSV:
+            table = _read_csv_fast(p, shown, sep=sep, decimal=decimal, columns=columns)
+            if table is not None:
+                try:
+                    return _interpret(table, l0_value, keep_censored)
+                except BenchDataError:
+                    pass  # the cell-by-cell reader finds the problem again and words it exactly
+                del table
+        table = _read_csv(p, shown, sep=sep, decimal=decimal)
+    table.rename(columns)
+    return _interpret(table, l0_value, keep_censored)
+
+
+def _check_reading_options(shown: str, sep, decimal, columns) -> str | None:
+    """Check ``sep``, ``decimal`` and ``columns`` of :func:`load_bench`; the delimiter
+    (``"tab"`` and ``"\\t"`` written out give a tab)."""
+    if sep is not None:
+        sep = {"tab": "\t", "\\t": "\t", "TAB": "\t"}.get(sep, sep)
+        if not isinstance(sep, str) or len(sep) != 1 or sep in "\"\r\n" or sep.isalnum():
+            raise BenchDataError(
+                shown, f"sep must be one character such as ',', ';' or a tab, got {sep!r}"
+            )
+    if decimal is not None and decimal not in DECIMAL_MARKS:
+        raise BenchDataError(shown, f"decimal must be '.' or ',', got {decimal!r}")
+    if sep is not None and sep == decimal:
+        raise BenchDataError(shown, f"sep and decimal are both {sep!r}; they must differ")
+    if columns is not None:
+        if not isinstance(columns, dict) or not all(
+            isinstance(k, str) and isinstance(v, str) and k.strip() and v.strip()
+            for k, v in columns.items()
+        ):
+            raise BenchDataError(
+                shown, "columns must map headers of the file to pamid's names, e.g. "
+                       "{'Druck': 'pressure_bar'}"
+            )
+    return sep
 
 
 def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> BenchData:
@@ -864,7 +1200,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
     known_numeric = [
         name for name in names if name in ("direction", "cycle") or (_quantity_of(name) is not None)
     ]
-    extras = [name for name in names if name != "muscle" and name not in known_numeric]
+    extras = [name for name in names if name not in _LABELS and name not in known_numeric]
     covariates = [name for name in extras if _is_numeric_extra(cols[name])]
     covariates += [name for name in known_numeric if _quantity_of(name) == "velocity"]
     covariates = [name for name in names if name in covariates]  # file order
@@ -874,40 +1210,32 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
     for order, name in enumerate(names):
         if name not in known_numeric and name not in covariates:
             continue
-        problem = _first_problem(cols[name])
+        problem = _first_problem(cols[name], blank_ok=_blank_ok(name))
         if problem is not None and (first is None or problem[0] < first[0]):
             first = (problem[0], order, name, problem[1])
     if first is not None:
         raise table.error(first[3], column=first[2], index=first[0])
     values = {name: _as_floats(cols[name]) for name in names if name in known_numeric}
     values.update({name: _as_floats(cols[name]) for name in covariates})
+    # Blank cells ("not recorded") of the optional numeric columns, NaN in ``values``.
+    blanks = {name: cols[name].blank() for name in values if _blank_ok(name)}
+    blanks = {name: mask for name, mask in blanks.items() if mask.any()}
 
-    # ---- muscle ids ----
+    # ---- muscle ids and trial labels ----
     # As codes into the distinct ids (in order of first appearance): muscle id of row i is
     # uniques[codes[i]]; ``ids``, the list of every row's id, only where the reader gave it.
-    ids: list[str] | None = None
     if "muscle" in cols:
-        muscle_col = cols["muscle"]
-        if muscle_col.codes is not None:
-            codes, uniques = muscle_col.codes, muscle_col.uniques
-            missing = (uniques == "")[codes]
-        else:
-            if muscle_col.text is not None:
-                ids = list(muscle_col.text)
-                missing = np.asarray([cell == "" for cell in ids], dtype=bool)
-            else:
-                ids = [muscle_col.raw(i) for i in range(n)]
-                missing = np.asarray(muscle_col.null, dtype=bool)
-            codes, uniques = pd.factorize(np.asarray(ids, dtype=object))
-            uniques = np.asarray(uniques, dtype=object)
-        i = _first_true(missing)
-        if i is not None:
-            raise table.error("empty muscle id; every row needs one", column="muscle", index=i)
+        codes, uniques, ids = _labels(table, "muscle", "muscle id")
         has_muscle = True
     else:
         ids = ["muscle"] * n
         codes, uniques = np.zeros(n, dtype=np.int64), np.array(["muscle"], dtype=object)
         has_muscle = False
+    trial_labels = None
+    if "trial" in cols:
+        trial_codes, trial_uniques, trial_labels = _labels(table, "trial", "trial label")
+        if trial_labels is None:
+            trial_labels = _text_values(trial_uniques, trial_codes)
     # Row where each muscle first appears: code k first appears after code k - 1 does.
     first_row = np.flatnonzero(codes > np.maximum.accumulate(np.concatenate(([-1], codes[:-1]))))
 
@@ -916,7 +1244,16 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
     if pressure_col_obj.kpa is not None:
         pressure_kpa = pressure_col_obj.kpa
     elif table.is_csv and pressure_unit != "kPa":
-        pressure_kpa = pressure_text_to_kPa(pressure_col_obj.text, pressure_unit)
+        pressure_kpa = pressure_text_to_kPa(pressure_col_obj.number_text(), pressure_unit)
+    elif table.sheet is not None and pressure_unit != "kPa":
+        # A spreadsheet's numbers: each converted from its shortest decimal text, exactly
+        # as the same number written in a CSV file ("2.505" bar is 250.5 kPa).
+        if pressure_col_obj.text is not None:
+            texts = pressure_col_obj.number_text()
+        else:
+            texts = [repr(float(v)) for v in pressure_col_obj.values]
+        distinct, where = np.unique(np.asarray(texts, dtype=object), return_inverse=True)
+        pressure_kpa = pressure_text_to_kPa(distinct, pressure_unit)[where]
     else:
         pressure_kpa = pressure_to_kPa(values[pressure_col], pressure_unit)
     i = _first_true(pressure_kpa < -ATMOSPHERE_KPA)
@@ -1015,7 +1352,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
     # ---- direction, cycle, time ----
     if "direction" in values:
         direction = values["direction"]
-        i = _first_true((direction != 1.0) & (direction != -1.0))
+        i = _first_true((direction != 1.0) & (direction != -1.0) & ~np.isnan(direction))
         if i is not None:
             raise table.error(
                 f"direction must be +1 (contracting) or -1 (extending), got "
@@ -1025,7 +1362,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
             )
     if "cycle" in values:
         cycle = values["cycle"]
-        i = _first_true(cycle != np.round(cycle))
+        i = _first_true((cycle != np.round(cycle)) & ~np.isnan(cycle))
         if i is not None:
             raise table.error(
                 f"cycle must be a whole number, got {cols['cycle'].raw(i)}",
@@ -1033,14 +1370,26 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
                 index=i,
             )
     if "time_s" in values:
-        _check_time_increases(table, cols["time_s"].raw, values["time_s"], codes, uniques,
-                              "muscle", has_muscle)
+        blank_time = blanks.get("time_s")
+        if trial_labels is None:
+            _check_time_increases(table, cols["time_s"].raw, values["time_s"], codes, uniques,
+                                  "muscle", has_muscle, blank=blank_time)
+        else:  # time restarts in every trial
+            pairs, first_of_pair = np.unique(codes * len(trial_uniques) + trial_codes,
+                                             return_index=True)
+            group_codes = np.searchsorted(pairs, codes * len(trial_uniques) + trial_codes)
+            described = np.array([
+                (f"muscle '{uniques[codes[r]]}', " if has_muscle else "")
+                + f"trial '{trial_uniques[trial_codes[r]]}'" for r in first_of_pair
+            ], dtype=object)
+            _check_time_increases(table, cols["time_s"].raw, values["time_s"], group_codes,
+                                  described, "trial", True, blank=blank_time, described=True)
 
     # ---- assemble the frame ----
-    data: dict[str, object] = {
-        "muscle": ids if ids is not None else _text_values(uniques, codes),
-        "pressure_kPa": pressure_kpa.astype(np.float64),
-    }
+    data: dict[str, object] = {"muscle": ids if ids is not None else _text_values(uniques, codes)}
+    if trial_labels is not None:
+        data["trial"] = trial_labels
+    data["pressure_kPa"] = pressure_kpa.astype(np.float64)
     if contraction is not None:
         data["contraction_pct"] = np.asarray(contraction, dtype=np.float64)
     if contraction_mm is not None:
@@ -1052,7 +1401,8 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
                 data[name] = np.asarray(l0_rows, dtype=np.float64)
         elif name in values:
             column = values[name]
-            data[name] = column.astype(np.int64) if name in ("direction", "cycle") else column
+            whole = name in ("direction", "cycle") and name not in blanks
+            data[name] = column.astype(np.int64) if whole else column
     for name in names:
         if name in covariates:
             data[name] = values[name]
@@ -1064,6 +1414,15 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
         {k: (v.to_numpy() if isinstance(v, pd.Series) else v) for k, v in data.items()},
         copy=False,
     )
+
+    if blanks:
+        warnings.warn(
+            MissingValuesWarning(
+                _blank_cells_message(table, blanks, codes, uniques, has_muscle),
+                {table.file_names.get(k, k): int(m.sum()) for k, m in blanks.items()},
+            ),
+            stacklevel=3,  # the caller of load_bench
+        )
 
     # ---- censoring ----
     censored = frame["force_N"].to_numpy() == 0.0

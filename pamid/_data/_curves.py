@@ -137,6 +137,8 @@ class _Blocks:
         self.size = (ends - starts)[self.block]
         self.n_blocks = len(starts)
         self.new = new
+        self.idx = np.arange(n)
+        self._diffs: dict[int, tuple] = {}
 
     def count(self, mask: np.ndarray) -> np.ndarray:
         """Rows of each block where ``mask`` holds."""
@@ -166,15 +168,13 @@ class _Blocks:
             return x.copy()
         base = x[self.start]  # precision: sum deviations from the block's first value
         c = np.concatenate([[0.0], np.cumsum(x - base)])
-        idx = np.arange(len(x))
-        lo = np.maximum(idx - half, self.start)
-        hi = np.minimum(idx + half, self.end - 1)
+        lo = np.maximum(self.idx - half, self.start)
+        hi = np.minimum(self.idx + half, self.end - 1)
         return base + (c[hi + 1] - c[lo]) / (hi - lo + 1)
 
     def shifted(self, idx_offset: np.ndarray) -> np.ndarray:
         """Row index moved by ``idx_offset`` rows, clipped to the row's block."""
-        idx = np.arange(len(self.block)) + idx_offset
-        return np.clip(idx, self.start, self.end - 1)
+        return np.minimum(np.maximum(self.idx + idx_offset, self.start), self.end - 1)
 
 
 def _ffill_within(values: np.ndarray, known: np.ndarray, blocks: _Blocks) -> np.ndarray:
@@ -215,16 +215,21 @@ class _Input:
 
 def _differences(u: np.ndarray, blocks: _Blocks):
     """First differences (the step into each row) and second differences (centred on each
-    row), with masks of the rows where they stay inside one block."""
+    row), with masks of the rows where they stay inside one block; kept on ``blocks``."""
+    cached = blocks._diffs.get(id(u))
+    if cached is not None and cached[0] is u:
+        return cached[1]
     n = len(u)
     d1 = np.zeros(n)
-    d1[1:] = u[1:] - u[:-1]
+    np.subtract(u[1:], u[:-1], out=d1[1:])
     has_prev = ~blocks.new
     d2 = np.zeros(n)
-    d2[1:-1] = u[2:] - 2.0 * u[1:-1] + u[:-2]
+    np.subtract(d1[2:], d1[1:-1], out=d2[1:-1])
     valid2 = np.zeros(n, dtype=bool)
-    valid2[1:-1] = has_prev[1:-1] & has_prev[2:]
-    return d1, has_prev, d2, valid2
+    np.logical_and(has_prev[1:-1], has_prev[2:], out=valid2[1:-1])
+    out = (d1, has_prev, d2, valid2)
+    blocks._diffs[id(u)] = (u, out)
+    return out
 
 
 def _exact(u: np.ndarray, blocks: _Blocks) -> np.ndarray:
@@ -257,7 +262,7 @@ def _noise(u: np.ndarray, blocks: _Blocks, exact: np.ndarray,
     otherwise be taken for noise), where at least 5 such rows exist in the block.
     """
     _, _, d2, valid2 = _differences(u, blocks)
-    valid2 &= ~blocks.per_block(exact)
+    valid2 = valid2 & ~blocks.per_block(exact)
     sigma = 1.4826 * blocks.median(np.abs(d2), valid2) / np.sqrt(6.0)
     if steady is not None:
         use = valid2 & steady
@@ -485,14 +490,13 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
     mov = _analyse(moving_raw, segments, sigma_seg[segments.starts])
     trial_of_seg = trials.block[segments.starts]
     span = np.where(moving_block == 1, pin.span, kin.span)[trial_of_seg]
-    derived = _direction_of(mov, segments, span)
-    if "direction" in frame:
-        given = sort(frame["direction"].to_numpy(np.float64))
-        recorded = np.isfinite(given)
-        direction = np.where(recorded, given, derived)
+    given = sort(frame["direction"].to_numpy(np.float64)) if "direction" in frame else None
+    recorded = np.isfinite(given) if given is not None else np.zeros(n, dtype=bool)
+    if recorded.all():
+        direction = given
     else:
-        recorded = np.zeros(n, dtype=bool)
-        direction = derived
+        derived = _direction_of(mov, segments, span)
+        direction = np.where(recorded, given, derived) if given is not None else derived
 
     # A new curve starts with a segment (trial, cycle, held level) or a change of direction.
     start = seg_start.copy()
@@ -500,9 +504,10 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
     curve_global = np.cumsum(start) - 1
     curve = curve_global - curve_global[muscles.start]
 
-    level_raw = np.where(iso, k, p)
-    level_of_curve = pd.Series(level_raw).groupby(curve_global).median().to_numpy()
-    level = level_of_curve[curve_global]
+    # The level of a curve: the mean of its held input (the noise averages out).
+    level_raw = held_raw
+    level = (np.bincount(curve_global, weights=level_raw)
+             / np.bincount(curve_global))[curve_global]
 
     trial_index = trials.block - trials.block[muscles.start]
     repeat = _repeats(trials, muscles, moving_block, level_raw, iso, pin, kin, cycle,
@@ -548,10 +553,11 @@ def _elapsed(t: np.ndarray, trials: _Blocks, muscles: _Blocks) -> np.ndarray:
     same = ~trials.new[1:]
     good = same & np.isfinite(dt) & (dt > 0)
     interval = float(np.median(dt[good])) if good.any() else 0.0
-    t0 = np.where(np.isfinite(t), t, np.nan)
-    first = pd.Series(t0).groupby(trials.block).agg(["min", "max"])
-    tmin = first["min"].to_numpy()
-    tmax = first["max"].to_numpy()
+    tmin, tmax = trials.min_max(t)  # time increases within a trial: first and last row
+    if not np.isfinite(t).all():  # blank times: the first and last recorded ones
+        t_lo = np.where(np.isfinite(t), t, np.inf)
+        t_hi = np.where(np.isfinite(t), t, -np.inf)
+        tmin, tmax = trials.min_max(t_lo)[0], trials.min_max(t_hi)[1]
     span = np.nan_to_num(tmax - tmin, nan=0.0) + interval
     # offset of each trial: the spans of the muscle's earlier trials
     block_muscle = muscles.block[trials.starts]
