@@ -42,6 +42,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "valve_mass_flows_kg_s": ("._control._valve", "valve_mass_flows_kg_s"),
     "BenchData": ("._data._bench", "BenchData"),
     "CensoredRowsWarning": ("._data._bench", "CensoredRowsWarning"),
+    "MissingValuesWarning": ("._data._bench", "MissingValuesWarning"),
     "load_bench": ("._data._bench", "load_bench"),
     "SarosiProtocol": ("._data._virtual_bench", "SarosiProtocol"),
     "simulate_sarosi_bench": ("._data._virtual_bench", "simulate_sarosi_bench"),
@@ -53,6 +54,10 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "InjectedHysteresis": ("._data._virtual_effects", "InjectedHysteresis"),
     "InjectedTemperature": ("._data._virtual_effects", "InjectedTemperature"),
     "InjectedViscousDamping": ("._data._virtual_effects", "InjectedViscousDamping"),
+    "IsometricProtocol": ("._data._virtual_isometric", "IsometricProtocol"),
+    "simulate_isometric_bench": ("._data._virtual_isometric", "simulate_isometric_bench"),
+    "virtual_lab_file": ("._data._virtual_isometric", "virtual_lab_file"),
+    "write_bench_csv": ("._data._virtual_isometric", "write_bench_csv"),
     "DeflectionProtocol": ("._data._virtual_joint", "DeflectionProtocol"),
     "JointSweepProtocol": ("._data._virtual_joint", "JointSweepProtocol"),
     "deflection_test_stiffness": ("._data._virtual_joint", "deflection_test_stiffness"),
@@ -216,6 +221,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._control._valve import valve_mass_flows_kg_s as valve_mass_flows_kg_s
     from ._data._bench import BenchData as BenchData
     from ._data._bench import CensoredRowsWarning as CensoredRowsWarning
+    from ._data._bench import MissingValuesWarning as MissingValuesWarning
     from ._data._bench import load_bench as load_bench
     from ._data._virtual_bench import SarosiProtocol as SarosiProtocol
     from ._data._virtual_bench import simulate_sarosi_bench as simulate_sarosi_bench
@@ -227,6 +233,10 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._data._virtual_effects import InjectedHysteresis as InjectedHysteresis
     from ._data._virtual_effects import InjectedTemperature as InjectedTemperature
     from ._data._virtual_effects import InjectedViscousDamping as InjectedViscousDamping
+    from ._data._virtual_isometric import IsometricProtocol as IsometricProtocol
+    from ._data._virtual_isometric import simulate_isometric_bench as simulate_isometric_bench
+    from ._data._virtual_isometric import virtual_lab_file as virtual_lab_file
+    from ._data._virtual_isometric import write_bench_csv as write_bench_csv
     from ._data._virtual_joint import DeflectionProtocol as DeflectionProtocol
     from ._data._virtual_joint import JointSweepProtocol as JointSweepProtocol
     from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness

@@ -91,11 +91,14 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     return write_atomic(path, write)
 
 
-def write_frame_atomic(path: str | os.PathLike, frame, *, index: bool = False) -> Path:
+def write_frame_atomic(
+    path: str | os.PathLike, frame, *, index: bool = False, sep: str = ",", decimal: str = "."
+) -> Path:
     """Write a pandas DataFrame to ``path`` atomically.
 
     The format follows the extension: ``.parquet`` or ``.pq`` gives Parquet (via pyarrow),
-    anything else CSV (comma-separated, UTF-8, floats written so that they read back exactly).
+    anything else CSV (UTF-8, floats written so that they read back exactly; ``sep`` and
+    ``decimal`` give the separator and the decimal mark, comma and point by default).
     The index is left out unless ``index=True``.
     """
     parquet = Path(path).suffix.lower() in PARQUET_SUFFIXES
@@ -104,7 +107,10 @@ def write_frame_atomic(path: str | os.PathLike, frame, *, index: bool = False) -
         if parquet:
             frame.to_parquet(tmp, index=index, engine="pyarrow")
         else:
-            frame.to_csv(tmp, index=index, encoding="utf-8", lineterminator="\n")
+            frame.to_csv(
+                tmp, index=index, encoding="utf-8", lineterminator="\n", sep=sep,
+                decimal=decimal,
+            )
 
     return write_atomic(path, write)
 

@@ -28,7 +28,7 @@ import pandas as pd
 
 from .._models._sarosi import Sarosi, sarosi_force
 from .._units import KPA_PER_BAR
-from ._virtual_effects import InjectedCompliance
+from ._virtual_effects import InjectedCompliance, apply_effects
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,6 +54,13 @@ class SarosiProtocol:
         sweep_seconds_per_point: if given, the time between samples of each sweep in turn
             (cycled over the sweeps), so that sweeps run at different speeds.
         effects: effects hidden in the force (:mod:`pamid._data._virtual_effects`).
+        pressure_noise_kPa: noise of the logged pressure (pressure sensor), standard
+            deviation of one reading; the true pressure stays at the set point.
+        pressure_resolution_kPa: the pressure sensor's reading step (0 for none).
+        contraction_noise_pct: noise of the logged contraction (length sensor), standard
+            deviation of one reading in % of l0; the muscle stays where the rod holds it.
+        trials: write every cycle as its own trial (a ``trial`` column "T1", "T2", …) whose
+            ``time_s`` restarts at 0, as a logger that writes one record per run does.
     """
 
     pressures_kPa: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -71,6 +78,10 @@ class SarosiProtocol:
     seconds_per_point: float = 2.0
     sweep_seconds_per_point: tuple[float, ...] | None = None
     effects: tuple = ()
+    pressure_noise_kPa: float = 0.0
+    pressure_resolution_kPa: float = 0.0
+    contraction_noise_pct: float = 0.0
+    trials: bool = False
 
     def __post_init__(self):
         if self.points_per_curve < 2:
@@ -85,6 +96,9 @@ class SarosiProtocol:
             not self.sweep_seconds_per_point or min(self.sweep_seconds_per_point) <= 0
         ):
             raise ValueError("sweep_seconds_per_point must hold positive durations")
+        for name in ("pressure_noise_kPa", "pressure_resolution_kPa", "contraction_noise_pct"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be zero or positive, got {getattr(self, name)}")
 
 
 def _sweep_end_pct(params: Sarosi, pressure_bar, kappa_max_pct, min_force_N):
@@ -115,6 +129,18 @@ def _quantize(x, step):
     return x if step <= 0 else np.round(x / step) * step
 
 
+def _read_sensor(key, value, noise_sd, step):
+    """What a sensor logs: ``value`` plus Gaussian noise of ``noise_sd`` (broadcast to it;
+    drawn from ``key`` only where some ``noise_sd`` > 0), rounded to the reading step
+    ``step`` (0: none)."""
+    value = np.asarray(value, float)
+    if np.any(np.asarray(noise_sd) > 0):
+        value = value + noise_sd * np.asarray(
+            jax.random.normal(key, value.shape, dtype=jnp.float64)
+        )
+    return _quantize(value, step)
+
+
 def simulate_sarosi_bench(
     key: jax.Array,
     params: Sarosi,
@@ -130,9 +156,11 @@ def simulate_sarosi_bench(
         muscle_ids: names of the muscles (default "M0001", …).
 
     Returns:
-        A table in pamid's bench format: muscle, pressure_kPa, length_mm, l0_mm,
-        contraction_pct, force_N, direction, time_s, and cycle when repeats are kept.
-        Contraction is what the encoder reads (quantized); force is the load-cell reading.
+        A table in pamid's bench format: muscle, trial when ``protocol.trials``,
+        pressure_kPa, length_mm, l0_mm, contraction_pct, force_N, direction, time_s, and
+        cycle when repeats are kept. Contraction is what the encoder reads (quantized),
+        pressure what the pressure sensor reads (the set point unless it is noisy or
+        quantized); force is the load-cell reading.
     """
     theta = np.atleast_2d(np.asarray(params.to_vector(), dtype=float))
     n_muscles = theta.shape[0]
@@ -192,14 +220,7 @@ def simulate_sarosi_bench(
         key, effect_key = jax.random.split(key)
         seed = int(jax.random.randint(effect_key, (), 0, 2**31 - 1))
         ctx = _effect_context(protocol, p_grid, kappa_true, ends, spp, time, direction, seed)
-        added = np.zeros(time.shape)
-        for effect in force_effects:
-            if hasattr(effect, "columns"):
-                for name, values in effect.columns(ctx).items():
-                    values = np.broadcast_to(values, time.shape)
-                    ctx[name] = values
-                    extra_columns[name] = values
-            added = added + effect.force_N(ctx)
+        added, extra_columns = apply_effects(force_effects, ctx, time.shape)
         f_true = f_true[None] + added  # (C, M, P, D, K)
 
     noise = protocol.noise_sd_N * np.asarray(
@@ -211,17 +232,53 @@ def simulate_sarosi_bench(
     if protocol.average_repeats:
         readings = readings.mean(axis=0, keepdims=True)
 
+    # The other logged channels: pressure and length sensors (the truth stays at the set
+    # points); each reading is noisy and quantized, averaged like the force.
+    reading_shape = (n_rep, *kappa_true.shape)
+    pressure_log = None  # None: the file gives the set points
+    if protocol.pressure_noise_kPa > 0 or protocol.pressure_resolution_kPa > 0:
+        pressure_log = _read_sensor(
+            jax.random.fold_in(key, 1),
+            np.broadcast_to(
+                np.asarray(protocol.pressures_kPa, float)[None, None, :, None, None],
+                reading_shape,
+            ),
+            protocol.pressure_noise_kPa,
+            protocol.pressure_resolution_kPa,
+        )
+        if protocol.average_repeats:
+            pressure_log = pressure_log.mean(axis=0, keepdims=True)
+    length_log = np.broadcast_to(length_read[None], reading_shape)
+    kappa_log = np.broadcast_to(kappa_true_read[None], reading_shape)
+    if protocol.contraction_noise_pct > 0:
+        length_log = _read_sensor(
+            jax.random.fold_in(key, 2), length_log,
+            protocol.contraction_noise_pct * protocol.l0_mm / 100.0,
+            protocol.length_resolution_mm,
+        )
+        if protocol.average_repeats:
+            length_log = length_log.mean(axis=0, keepdims=True)
+        kappa_log = 100.0 * (protocol.l0_mm - length_log) / protocol.l0_mm
+    if protocol.trials:  # each cycle its own trial, its clock restarting at 0
+        time = time - time[:, :, :1, :1, :1]
+
     frames = []
     for m, muscle in enumerate(muscle_ids):
         for c_index, cycle in enumerate(cycles):
             for pi, p_kpa in enumerate(protocol.pressures_kPa):
                 for di, d in enumerate(protocol.directions):
-                    block = {
-                        "muscle": muscle,
-                        "pressure_kPa": float(p_kpa),
-                        "length_mm": np.round(length_read[m, pi, di], 6),
+                    c_log = min(c_index, len(length_log) - 1)
+                    block = {"muscle": muscle}
+                    if protocol.trials:
+                        block["trial"] = f"T{cycle or 1}"
+                    block |= {
+                        "pressure_kPa": (
+                            float(p_kpa) if pressure_log is None
+                            else np.round(pressure_log[c_log, m, pi, di], 6)
+                        ),
+                        "length_mm": np.round(length_log[c_log, m, pi, di], 6),
                         "l0_mm": protocol.l0_mm,
-                        "contraction_pct": np.round(kappa_true_read[m, pi, di], 9),
+                        "contraction_pct": np.round(kappa_log[c_log, m, pi, di], 9),
                         "force_N": np.round(readings[c_index, m, pi, di], 6),
                         "direction": d,
                         "time_s": np.round(time[c_index, m, pi, di], 9),
@@ -241,17 +298,19 @@ def _sweep_seconds(protocol: SarosiProtocol, n_sweeps: int) -> np.ndarray:
     return durations[np.arange(n_sweeps) % len(durations)]
 
 
-def _compliant_contraction(batched, p_grid, kappa_read, mm_per_N, l0_mm):
+def _compliant_contraction(batched, p_bar, kappa_read, mm_per_N, l0_mm):
     """Solve F = F_model(p, κ_read + 100·c·F/l0) for the muscle's true contraction (Newton).
 
     The rig's stretch c·F shortens the muscle below what the rod position says
-    (:class:`~pamid._data._virtual_effects.InjectedCompliance`).
+    (:class:`~pamid._data._virtual_effects.InjectedCompliance`). ``kappa_read`` has a
+    leading muscle axis (M, …); ``p_bar`` (bar) broadcasts to it, ``l0_mm`` is one length
+    or one per muscle.
     """
-    gain = 100.0 * mm_per_N / l0_mm
+    kappa_read = jnp.asarray(kappa_read)
+    p_all = jnp.broadcast_to(jnp.asarray(p_bar), kappa_read.shape)
+    gains = jnp.broadcast_to(100.0 * mm_per_N / jnp.asarray(l0_mm, float), kappa_read.shape[:1])
 
-    def one(prm, k_read):
-        p = jnp.asarray(p_grid[0])
-
+    def one(prm, p, k_read, gain):
         def residual(f):
             return f - sarosi_force(prm, p, k_read + gain * f)
 
@@ -261,7 +320,7 @@ def _compliant_contraction(batched, p_grid, kappa_read, mm_per_N, l0_mm):
             f = f - r / dr
         return k_read + gain * f
 
-    return np.asarray(jax.vmap(one)(batched, jnp.asarray(kappa_read)))
+    return np.asarray(jax.vmap(one)(batched, p_all, kappa_read, gains))
 
 
 def _effect_context(protocol, p_grid, kappa, ends, spp, time, direction, seed):

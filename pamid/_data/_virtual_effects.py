@@ -8,14 +8,16 @@ An effect may add a column to the file (temperature, a humidity reading) as a re
 would, but never says that the force depends on it.
 
 Every effect sees a context of arrays that broadcast to the shape (C, M, P, D, K) — cycle
-(1 when repeats are averaged), muscle, pressure, direction, point — and returns the force it
-adds, in N:
+(1 when repeats are averaged), muscle, pressure, direction, point — in a sweep, or
+(M, T, S) — muscle, trial, sample — in an isometric test
+(:mod:`pamid._data._virtual_isometric`), and returns the force it adds, in N:
 
 ``p_bar`` gauge pressure (bar); ``kappa_pct`` contraction (%); ``direction`` +1 contracting,
 −1 extending; ``time_s`` the time of the sample from the start of the muscle's test;
-``velocity_mm_s`` the rate of contraction (positive while contracting); ``sweep`` the index
-of the sweep (cycle-major) within a muscle; ``rng`` a NumPy Generator made from the bench's
-JAX key.
+``velocity_mm_s`` the rate of contraction (positive while contracting; 0 in an isometric
+test); ``sweep`` the index of the sweep (cycle-major; the trial in an isometric test) within a
+muscle; ``point_fraction`` the sample's place in its sweep or trial, 0 … 1; ``rng`` a NumPy
+Generator made from the bench's JAX key.
 
 Compliance is different: it changes the muscle's length, not the force reading, so the
 bench applies it inside the force law (see :class:`InjectedCompliance`).
@@ -37,6 +39,24 @@ __all__ = [
 ]
 
 _P_REF_BAR = 3.0  # the pressure at which every form of the hysteresis has the same size
+
+
+def apply_effects(effects, ctx: dict, shape: tuple[int, ...]):
+    """Run ``effects`` (all but :class:`InjectedCompliance`) on the context ``ctx``.
+
+    Returns the force they add together (N, of ``shape``) and the columns they log, by name
+    (each of ``shape``). ``ctx`` gains the logged columns, so that an effect can read them.
+    """
+    added = np.zeros(shape)
+    columns: dict[str, np.ndarray] = {}
+    for effect in effects:
+        if hasattr(effect, "columns"):
+            for name, values in effect.columns(ctx).items():
+                values = np.broadcast_to(values, shape)
+                ctx[name] = values
+                columns[name] = values
+        added = added + effect.force_N(ctx)
+    return added, columns
 
 
 def _check_form(form: str, forms: tuple[str, ...], what: str) -> None:
