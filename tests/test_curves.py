@@ -176,3 +176,15 @@ def test_real_isometric_file_two_curves_per_trial_and_its_direction():
     repeat = pd.Series(c.repeat).groupby([frame["muscle"], frame["trial"]]).first()
     tag = repeat.index.get_level_values(1).str.extract(r"_T(\d+)$")[0].astype(int)
     np.testing.assert_array_equal(repeat.to_numpy(), tag.to_numpy() - 8)  # T8, T9, T10
+
+
+@pytest.mark.parametrize(("kind", "per_trial"),
+                         [("isometric_ramp", 2), ("isometric_stairs", 2), ("sweeps_noisy", 10)])
+def test_virtual_lab_files_of_100000_rows_keep_their_curves(kind, per_trial):
+    """Fast sampling (a one-sample step is mostly noise), noise on every logged channel,
+    valve transients, trials restarting time, no direction column: the curves a lab ran."""
+    frame = pamid.virtual_lab_file(jax.random.key(1), kind, 100_000)
+    c = find_curves(frame.assign(direction=np.nan))
+    assert (c.moving == (0 if kind.startswith("sweeps") else 1)).all()
+    assert (pd.Series(c.curve).groupby(frame["trial"]).nunique() == per_trial).all()
+    assert np.mean(c.direction == frame["direction"].to_numpy()) > 0.98

@@ -43,6 +43,8 @@ __all__ = ["Curves", "find_curves"]
 NOISE_SIGMAS = 5.0
 #: Floor of the tolerance, relative to the input's scale (|median| + range): exact data.
 RELATIVE_FLOOR = 1e-6
+#: Samples over which the typical step of the moving input is measured.
+STEP_SPAN = 16
 #: The longest lag (in samples) used to see motion through noise.
 MAX_LAG = 64
 #: A reversal of the moving input must retrace this fraction of the trial's range.
@@ -280,9 +282,13 @@ def _analyse(u: np.ndarray, blocks: _Blocks, sigma: np.ndarray) -> _Input:
     lo, hi = blocks.min_max(u)
     scale = np.maximum(np.abs(lo), np.abs(hi))
     tol = np.maximum(NOISE_SIGMAS * sigma, RELATIVE_FLOOR * np.maximum(scale, 1e-300))
-    # The lag at which a typical step of motion (the mean |Δu|) clears the noise twice over.
-    step = np.bincount(blocks.block, weights=np.where(has_prev, np.abs(d1), 0.0),
-                       minlength=blocks.n_blocks) / np.maximum(blocks.count(has_prev), 1)
+    # The lag at which a typical step of motion clears the noise twice over. The step is
+    # measured over STEP_SPAN samples (the mean |u[i + 16] − u[i]| / 16), where noise adds
+    # only ~0.1 σ per sample: at a fast sampling rate a one-sample step is mostly noise.
+    ahead = np.minimum(blocks.idx + STEP_SPAN, blocks.end - 1)
+    span_rows = np.maximum(ahead - blocks.idx, 1)
+    step = np.bincount(blocks.block, weights=np.abs(u[ahead] - u) / span_rows,
+                       minlength=blocks.n_blocks) / np.maximum(blocks.size[blocks.starts], 1)
     with np.errstate(divide="ignore", invalid="ignore"):
         lag = np.where(step > 0, np.ceil(2.0 * tol / step), 1.0)
     lag = np.clip(np.nan_to_num(lag, nan=1.0), 1, MAX_LAG).astype(np.int64)
@@ -307,16 +313,17 @@ def _steady(u: np.ndarray, blocks: _Blocks, sigma: np.ndarray) -> np.ndarray:
     return out
 
 
-def _level_starts(jump, held_raw, tol, blocks: _Blocks) -> np.ndarray:
+def _level_starts(jump, held_raw, tol, exact, blocks: _Blocks) -> np.ndarray:
     """First row of each new level of the held input. ``jump`` flags rows near a change of
-    level (smoothing spreads a step over several rows); in every run of them, each row whose
-    raw step clears the tolerance starts a level (exact set points: one level per row), and
-    a run with no such row (a slow, noisy transition) starts one at its largest step."""
+    level (smoothing spreads a step over several rows). In every run of them, an input at
+    exact set points (``exact`` rows) starts a level at each row whose step clears the
+    tolerance (a sparse map: one level per row); a noisy input starts one level per run, at
+    its largest step (a noise spike beside a real step is not a level of its own)."""
     starts = np.zeros(len(jump), dtype=bool)
     if not jump.any():
         return starts
     d1, has_prev, _, _ = _differences(held_raw, blocks)
-    big = jump & has_prev & (np.abs(d1) > tol)
+    big = jump & has_prev & exact & (np.abs(d1) > tol)
     run_start = np.zeros(len(jump), dtype=bool)
     run_start[0] = jump[0]
     run_start[1:] = jump[1:] & (~jump[:-1] | blocks.new[1:])
@@ -478,7 +485,8 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
     held_tol = np.where(iso, trials.per_block(kin.tol), trials.per_block(pin.tol))
     jump = ((np.abs(np.where(iso, kin.back, pin.back)) > held_tol)
             | (np.abs(np.where(iso, kin.fwd, pin.fwd)) > held_tol))
-    seg_start = trials.new | _level_starts(jump, held_raw, held_tol, trials)
+    held_exact = np.where(iso, trials.per_block(exact_k), trials.per_block(exact_p))
+    seg_start = trials.new | _level_starts(jump, held_raw, held_tol, held_exact, trials)
     if cycle is not None:
         seg_start[1:] |= cycle[1:] != cycle[:-1]
     segments = _Blocks(np.cumsum(seg_start))
