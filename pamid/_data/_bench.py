@@ -52,6 +52,14 @@ written plainly) is read column by column with pyarrow; every other file, and ev
 with a problem, is read cell by cell with Python's csv module, which reports the problem.
 Both give the same result, to the bit.
 
+Pipes
+-----
+A file that is not a regular one (``pamid fit <(cat f.csv)``, ``/dev/stdin``, a FIFO) is
+read once, whole, and its bytes go to every reader; one that has no extension is read as
+Parquet or a spreadsheet when its first bytes say so, else as CSV. The first byte must
+arrive within :data:`STREAM_TIMEOUT_S` (10 s): a FIFO nobody writes to is an error, not a
+wait for ever.
+
 Reading spreadsheets
 --------------------
 ``.xlsx`` (and ``.xlsm``, ``.xlsb``, ``.xls``, ``.ods``) are read with python-calamine
@@ -75,6 +83,9 @@ import io
 import math
 import os
 import re
+import select
+import stat
+import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -356,23 +367,161 @@ def _csv_dialect(data: bytes, sep: str | None, decimal: str | None) -> tuple[str
     return sep, decimal
 
 
-def _read_bytes(path: Path, shown: str) -> bytes:
-    if not path.exists():
-        raise BenchDataError(shown, "file not found")
-    if path.is_dir():
-        raise BenchDataError(shown, "is a directory, not a data file")
+def _stream_key(path: Path, shown: str) -> tuple[int, int] | None:
+    """None for a regular file, else the stream's identity (device, inode): a pipe, a FIFO,
+    ``/dev/stdin``, a character device. Errors for a missing path or a directory."""
     try:
-        data = path.read_bytes()
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise BenchDataError(shown, "file not found") from None
     except OSError as exc:
         raise BenchDataError(shown, f"cannot read the file: {exc.strerror or exc}") from exc
+    if stat.S_ISDIR(info.st_mode):
+        raise BenchDataError(shown, "is a directory, not a data file")
+    if stat.S_ISREG(info.st_mode):
+        return None
+    return info.st_dev, info.st_ino
+
+
+def _no_data(shown: str, timeout_s: float) -> BenchDataError:
+    return BenchDataError(shown, f"no data arrived within {timeout_s:g} s (a pipe or FIFO "
+                                 "with no writer?)")
+
+
+def _read_stream(path: Path, shown: str, timeout_s: float) -> bytes:
+    """Every byte of a pipe, FIFO or device, read once.
+
+    The first byte must arrive within ``timeout_s`` seconds (a FIFO nobody writes to would
+    otherwise block for ever); after it, the stream is read to its end however slowly it
+    comes. A character device stops early once its bytes are plainly not text
+    (``/dev/zero`` never ends)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO with no writer opens too
+    except OSError as exc:
+        raise BenchDataError(shown, f"cannot read the file: {exc.strerror or exc}") from exc
+    device = stat.S_ISCHR(os.fstat(fd).st_mode)
+    chunks: list[bytes] = []
+    size = 0
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN | select.POLLPRI)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if chunks:
+                wait = None  # data is coming: read it all
+            else:
+                wait = max(0.0, deadline - time.monotonic()) * 1000.0
+            if not poller.poll(wait) and not chunks:
+                raise _no_data(shown, timeout_s)
+            try:
+                chunk = os.read(fd, 1 << 20)
+            except BlockingIOError:  # woken without data (a FIFO whose writer is not there)
+                if not chunks and time.monotonic() >= deadline:
+                    raise _no_data(shown, timeout_s) from None
+                continue
+            except OSError as exc:
+                raise BenchDataError(shown, f"cannot read the file: {exc.strerror or exc}"
+                                     ) from exc
+            if not chunk:
+                break  # the writer closed its end
+            chunks.append(chunk)
+            size += len(chunk)
+            if device and size >= 8192 and _looks_binary(b"".join(chunks[:8])):
+                break
+    finally:
+        os.close(fd)
+    return b"".join(chunks)
+
+
+#: Seconds :func:`load_bench` and :func:`load_decay` wait for the first byte from a pipe, a
+#: FIFO or ``/dev/stdin`` before they give up (a FIFO with no writer never sends one).
+STREAM_TIMEOUT_S = 10.0
+# Streams read ahead by :func:`head_bytes`: their bytes (or the error reading them gave), for
+# the next read of the same stream, which takes them.
+_READ_AHEAD: dict[tuple[int, int], bytes | BenchDataError] = {}
+
+
+def _stream_bytes(path: Path, shown: str, timeout_s: float | None = None) -> bytes | None:
+    """The bytes of ``path`` if it is a stream (pipe, FIFO, ``/dev/stdin``, device), read once
+    (a stream cannot be read twice: every reader of the file is handed these bytes); None for a
+    regular file, which each reader reads itself. Errors for a missing path, a directory, an
+    empty stream or one that sends nothing within ``timeout_s`` (:data:`STREAM_TIMEOUT_S`)."""
+    key = _stream_key(path, shown)
+    if key is None:
+        return None
+    data = _READ_AHEAD.pop(key, None)
+    if data is None:
+        data = _read_stream(path, shown, STREAM_TIMEOUT_S if timeout_s is None else timeout_s)
+    if isinstance(data, BenchDataError):
+        raise data
+    if not data:
+        raise BenchDataError(shown, "no data: the stream ended before its first byte (0 "
+                                    "bytes); expected a table with a header")
+    return data
+
+
+def head_bytes(path: str | os.PathLike, size: int = 65536) -> bytes:
+    """The first ``size`` bytes of a data file, to tell what it holds (its header) without
+    spoiling it for the reader: a stream (pipe, FIFO, ``/dev/stdin``) is read whole, once,
+    and its bytes are handed to the next :func:`load_bench` or :func:`load_decay` of it.
+    Raises BenchDataError where the file cannot be read."""
+    p, shown = Path(path), str(path)
+    key = _stream_key(p, shown)
+    if key is None:
+        try:
+            with open(p, "rb") as f:
+                return f.read(size)
+        except OSError as exc:
+            raise BenchDataError(shown, f"cannot read the file: {exc.strerror or exc}"
+                                 ) from exc
+    if key not in _READ_AHEAD:
+        try:
+            _READ_AHEAD[key] = _read_stream(p, shown, STREAM_TIMEOUT_S)
+        except BenchDataError as exc:
+            _READ_AHEAD[key] = exc
+            raise
+    data = _READ_AHEAD[key]
+    if isinstance(data, BenchDataError):
+        raise data
+    return data[:size]
+
+
+def _file_kind(path: Path, stream: bytes | None) -> str:
+    """How to read a file: ``"parquet"``, ``"spreadsheet"`` or ``"csv"``, by its extension;
+    a stream (``/dev/stdin``, a pipe), which has none, by its first bytes."""
+    from ._spreadsheet import SPREADSHEET_SUFFIXES
+
+    suffix = path.suffix.lower()
+    if suffix in PARQUET_SUFFIXES:
+        return "parquet"
+    if suffix in SPREADSHEET_SUFFIXES:
+        return "spreadsheet"
+    if stream is not None and stream[:4] == b"PAR1":
+        return "parquet"
+    if stream is not None and stream[:4] in (b"PK\x03\x04", b"\xd0\xcf\x11\xe0"):
+        return "spreadsheet"  # a zip (xlsx, ods) or an OLE file (xls)
+    return "csv"
+
+
+def _read_bytes(path: Path, shown: str, data: bytes | None = None) -> bytes:
+    """The file's bytes: ``data`` where the caller read the stream already, else read now."""
+    if data is None:
+        data = _stream_bytes(path, shown)
+    if data is None:
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise BenchDataError(shown, f"cannot read the file: {exc.strerror or exc}"
+                                 ) from exc
     if not data:
         raise BenchDataError(shown, "the file is empty (0 bytes); expected a table with a header")
     return data
 
 
-def _read_csv_bytes(path: Path, shown: str) -> bytes:
-    """The bytes of a file to be read as CSV, after the checks that it is text at all."""
-    data = _read_bytes(path, shown)
+def _read_csv_bytes(path: Path, shown: str, data: bytes | None = None) -> bytes:
+    """The bytes of a file to be read as CSV (``data`` where a stream was read already),
+    after the checks that it is text at all."""
+    data = _read_bytes(path, shown, data)
     if data[:4] == b"PAR1":
         raise BenchDataError(
             shown, "this is a Parquet file, not CSV; give it the extension .parquet"
@@ -385,14 +534,16 @@ def _read_csv_bytes(path: Path, shown: str) -> bytes:
 
 
 def _read_csv(
-    path: Path, shown: str, *, sep: str | None = None, decimal: str | None = None
+    path: Path, shown: str, *, sep: str | None = None, decimal: str | None = None,
+    data: bytes | None = None,
 ) -> _Table:
     """Read a CSV file cell by cell, keeping the file line of every data row.
 
     This is the reference reader: it reads every file pamid reads as CSV and words every
     problem. ``sep`` and ``decimal`` default to those detected (:func:`_csv_dialect`).
+    ``data``: the file's bytes where they were read already (a stream is read only once).
     """
-    data = _read_csv_bytes(path, shown)
+    data = _read_csv_bytes(path, shown, data)
     sep, decimal = _csv_dialect(data, sep, decimal)
     try:
         text = data.decode("utf-8-sig")
@@ -491,7 +642,7 @@ def _plain_numbers(chunked, decimal: str = ".", blanks: bool = False) -> np.ndar
 
     allowed = _NUMBER_BYTES if decimal == "." else _NUMBER_BYTES_COMMA
     step = 1 << 20
-    ok = np.empty(step, dtype=bool)  # reused, so that the check allocates nothing big
+    ok = None  # reused, so that the check allocates nothing big
     values = np.empty(len(chunked), dtype=np.float64)
     blank = np.zeros(len(chunked), dtype=bool) if blanks else None
     at = 0
@@ -502,6 +653,8 @@ def _plain_numbers(chunked, decimal: str = ".", blanks: bool = False) -> np.ndar
         offsets = np.frombuffer(offsets, dtype=np.int32)
         start, stop = offsets[chunk.offset], offsets[chunk.offset + len(chunk)]
         text = np.frombuffer(data, dtype=np.uint8) if stop > start else None
+        if ok is None or len(ok) < min(step, stop - start):
+            ok = np.empty(min(step, stop - start), dtype=bool)
         for k in range(start, stop, step):
             part = text[k : min(k + step, stop)]
             if not np.take(allowed, part, out=ok[: len(part)]).all():
@@ -572,14 +725,22 @@ def _blank_ok(name: str) -> bool:
     return name not in _LABELS and _quantity_of(name) not in _STRICT_QUANTITIES
 
 
-def _fast_column(name: str, chunked, n: int, decimal: str = ".") -> _Column | None:
-    """One column for the fast reader, or None if the cell-by-cell reader must read the file."""
+def _fast_column(
+    name: str, chunked, n: int, decimal: str = ".", values: np.ndarray | None = None
+) -> _Column | None:
+    """One column for the fast reader, or None if the cell-by-cell reader must read the file.
+
+    ``values``: the column's cells as :func:`_plain_numbers` with ``blanks=True`` reads
+    them, where they were read already (with other columns, :func:`_fast_columns`)."""
     if name in _LABELS:
         codes, uniques = _factorize_text(chunked)
         return _Column(name, codes=codes, uniques=uniques)
     blanks = _blank_ok(name)
     known = name in ("direction", "cycle") or _quantity_of(name) is not None
-    values = _plain_numbers(chunked, decimal, blanks)
+    if values is None:
+        values = _plain_numbers(chunked, decimal, blanks)
+    elif not blanks and np.isnan(values).any():
+        values = None  # a blank cell where a number is required
     if values is not None:
         null = np.isnan(values) if blanks else np.broadcast_to(False, (n,))
         if known or not null.all():  # an extra column with no number is text
@@ -611,6 +772,7 @@ def _read_csv_fast(
     sep: str | None = None,
     decimal: str | None = None,
     columns: dict[str, str] | None = None,
+    data: bytes | None = None,
 ) -> _Table | None:
     """Read a plain CSV file column by column with pyarrow, or return None.
 
@@ -623,12 +785,13 @@ def _read_csv_fast(
     line i + 1 and every cell reads as the cell-by-cell reader reads it. For any other file
     (not UTF-8, say), or any cell in doubt, the answer is None and the cell-by-cell reader
     takes over; it also words every problem, so messages do not depend on which reader ran.
-    The columns have pamid's names (the file's headers in ``file_names``).
+    The columns have pamid's names (the file's headers in ``file_names``). ``data``: the
+    file's bytes where they were read already (a stream is read only once).
     """
     import pyarrow as pa
     import pyarrow.csv as pa_csv
 
-    data = _read_csv_bytes(path, shown)
+    data = _read_csv_bytes(path, shown, data)
     if b'"' in data or b"\0" in data or not _is_utf8(data):
         return None
     if b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
@@ -687,31 +850,77 @@ def _read_csv_fast(
     if n != n_lines:
         return None
 
-    table_columns: dict[str, _Column] = {}
-    for key, name in zip(keys, canonical, strict=True):
-        chunked = arrow.column(key)
-        arrow = arrow.drop_columns([key])  # memory: the column goes once converted
-        try:
-            column = _fast_column(name, chunked, n, decimal)
-        except pa.ArrowException:  # e.g. a text column too large to combine into one array
-            return None
-        if column is None:
-            return None
-        table_columns[name] = column
+    parsed = arrow.columns
+    del arrow
+    try:
+        table_columns = _fast_columns(canonical, parsed, n, decimal)
+    except pa.ArrowException:  # e.g. a text column too large to combine into one array
+        return None
+    if table_columns is None:
+        return None
     file_names = {new: old for new, old in zip(canonical, names, strict=True) if new != old}
     return _Table(shown, canonical, table_columns, n, None, is_csv=True, first_line=2,
                   canonical=True, file_names=file_names)
 
 
-def _read_parquet(path: Path, shown: str) -> _Table:
-    """Read a Parquet file with pyarrow, column by column."""
+#: Cells, and columns, the fast reader checks and converts in one go (columns of a wide file
+#: together; a text column sends only its own block to the column-by-column way).
+_BLOCK_CELLS = 1 << 20
+_BLOCK_COLUMNS = 256
+
+
+def _fast_columns(names: list[str], parsed: list, n: int, decimal: str
+                  ) -> dict[str, _Column] | None:
+    """The fast reader's columns (see :func:`_fast_column`) from pyarrow string columns
+    ``parsed`` (emptied as they are converted), or None if the cell-by-cell reader must read
+    the file.
+
+    Columns other than labels are checked and converted in blocks of adjacent columns of
+    up to :data:`_BLOCK_CELLS` cells (and :data:`_BLOCK_COLUMNS` columns), with one
+    :func:`_plain_numbers` for the whole block: a file 10 rows by 20,000 columns costs a
+    hundred pyarrow calls rather than 20,000 of each. A block with a cell that is not a plain
+    number (a text column, say) is read column by column."""
+    import pyarrow as pa
+
+    columns: dict[str, _Column] = {}
+    per_block = min(_BLOCK_COLUMNS, max(1, _BLOCK_CELLS // max(n, 1)))
+    j = 0
+    while j < len(names):
+        block = [j]  # a label column alone; else adjacent columns other than labels
+        if names[j] not in _LABELS:
+            while (j + len(block) < len(names) and len(block) < per_block
+                   and names[j + len(block)] not in _LABELS):
+                block.append(j + len(block))
+        values = None
+        if len(block) > 1:
+            joined = pa.chunked_array(
+                [pa.concat_arrays([c for k in block for c in parsed[k].chunks])], pa.string())
+            values = _plain_numbers(joined, decimal, blanks=True)
+            del joined
+            if values is not None:
+                values = values.reshape(len(block), n)
+        for i, k in enumerate(block):
+            chunked, parsed[k] = parsed[k], None  # memory: the column goes once converted
+            column = _fast_column(names[k], chunked, n, decimal,
+                                  None if values is None else values[i])
+            if column is None:
+                return None
+            columns[names[k]] = column
+        j += len(block)
+    return columns
+
+
+def _read_parquet(path: Path, shown: str, data: bytes | None = None) -> _Table:
+    """Read a Parquet file with pyarrow, column by column (from ``data``, its bytes, where a
+    stream was read already)."""
     import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
-    _read_bytes(path, shown)  # existence, directory and empty-file checks
+    data = _read_bytes(path, shown, data)  # existence, directory and empty-file checks
+    source = pa.py_buffer(data)
     try:
-        schema = pq.read_schema(path)
+        schema = pq.read_schema(pa.BufferReader(source))
     except Exception as exc:  # pyarrow raises several types for a corrupt file
         raise BenchDataError(shown, f"not a table: cannot read it as Parquet ({exc})") from exc
     names = [n for n in schema.names if not n.startswith("__index_level_")]
@@ -720,7 +929,7 @@ def _read_parquet(path: Path, shown: str) -> _Table:
             raise BenchDataError(shown, f"column {j + 1} has no name")
     _check_duplicates(shown, names)
     try:
-        table = pq.ParquetFile(path).read()
+        table = pq.ParquetFile(pa.BufferReader(source)).read()
     except Exception as exc:
         raise BenchDataError(shown, f"cannot read the Parquet data ({exc})") from exc
 
@@ -756,11 +965,10 @@ def _quantity_of(name: str, quantities=None) -> str | None:
     ``quantities`` maps quantity → accepted units (default: the bench-file table; decay
     files pass their own)."""
     quantities = QUANTITY_UNITS if quantities is None else quantities
-    lower = name.lower()
-    for quantity in quantities:
-        if lower == quantity or lower.startswith(quantity + "_"):
-            return quantity
-    return None
+    # One look-up, not a loop over the quantities (a file may have 40,000 columns): the
+    # quantities are lower-case words without an underscore.
+    head = name.lower().partition("_")[0]
+    return head if head in quantities else None
 
 
 def _check_units(table: _Table, quantities=None) -> None:
@@ -1076,7 +1284,8 @@ def load_bench(
     path:
         The file. ``.parquet`` and ``.pq`` are read as Parquet; ``.xlsx``, ``.xlsm``,
         ``.xlsb``, ``.xls`` and ``.ods`` as spreadsheets; anything else as CSV (comma-,
-        semicolon- or tab-separated, as the header shows).
+        semicolon- or tab-separated, as the header shows). A pipe or ``/dev/stdin`` is read
+        once (see "Pipes" in the module's documentation).
     l0_mm:
         Nominal (unpressurised, uncontracted) muscle length in mm, for files that give
         ``length_mm`` but neither ``contraction_pct`` nor an ``l0_mm`` column. If the file has
@@ -1132,9 +1341,10 @@ def load_bench(
         l0_value = None
     sep = _check_reading_options(shown, sep, decimal, columns)
 
-    suffix = p.suffix.lower()
-    kind = ("parquet" if suffix in PARQUET_SUFFIXES else
-            "spreadsheet" if suffix in SPREADSHEET_SUFFIXES else "csv")
+    # A pipe, FIFO or /dev/stdin is read here, once, and its bytes handed to every reader
+    # that looks at the file (None for a regular file).
+    stream = _stream_bytes(p, shown)
+    kind = _file_kind(p, stream)
     if sheet is not None and kind != "spreadsheet":
         raise BenchDataError(shown, f"sheet={sheet!r} (--sheet) applies to spreadsheets "
                                     f"({', '.join(SPREADSHEET_SUFFIXES)}) only")
@@ -1144,19 +1354,20 @@ def load_bench(
         if decimal is not None:
             raise BenchDataError(shown, "decimal= (--decimal) applies to CSV files and "
                                         "spreadsheets only")
-        table = _read_parquet(p, shown)
+        table = _read_parquet(p, shown, stream)
     elif kind == "spreadsheet":
-        table = read_spreadsheet(p, shown, sheet=sheet, decimal=decimal or ".")
+        table = read_spreadsheet(p, shown, sheet=sheet, decimal=decimal or ".", data=stream)
     else:
         if _FAST_CSV:
-            table = _read_csv_fast(p, shown, sep=sep, decimal=decimal, columns=columns)
+            table = _read_csv_fast(p, shown, sep=sep, decimal=decimal, columns=columns,
+                                   data=stream)
             if table is not None:
                 try:
                     return _interpret(table, l0_value, keep_censored)
                 except BenchDataError:
                     pass  # the cell-by-cell reader finds the problem again and words it exactly
                 del table
-        table = _read_csv(p, shown, sep=sep, decimal=decimal)
+        table = _read_csv(p, shown, sep=sep, decimal=decimal, data=stream)
     table.rename(columns)
     return _interpret(table, l0_value, keep_censored)
 
@@ -1197,25 +1408,29 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
     n = table.n_rows
 
     # ---- which columns are numbers, and are they all finite numbers ----
+    # (Sets for every membership test: a file may have tens of thousands of columns.)
+    quantities = {name: _quantity_of(name) for name in names}
     known_numeric = [
-        name for name in names if name in ("direction", "cycle") or (_quantity_of(name) is not None)
+        name for name in names if name in ("direction", "cycle") or quantities[name] is not None
     ]
-    extras = [name for name in names if name not in _LABELS and name not in known_numeric]
-    covariates = [name for name in extras if _is_numeric_extra(cols[name])]
-    covariates += [name for name in known_numeric if _quantity_of(name) == "velocity"]
-    covariates = [name for name in names if name in covariates]  # file order
-    text_extras = [name for name in extras if name not in covariates]
+    known = set(known_numeric)
+    extras = [name for name in names if name not in _LABELS and name not in known]
+    numeric_extras = {name for name in extras if _is_numeric_extra(cols[name])}
+    velocity = {name for name in known_numeric if quantities[name] == "velocity"}
+    covariates = [name for name in names if name in numeric_extras or name in velocity]
+    is_covariate = set(covariates)
+    text_extras = {name for name in extras if name not in is_covariate}
 
     first: tuple[int, int, str, str] | None = None
     for order, name in enumerate(names):
-        if name not in known_numeric and name not in covariates:
+        if name not in known and name not in is_covariate:
             continue
         problem = _first_problem(cols[name], blank_ok=_blank_ok(name))
         if problem is not None and (first is None or problem[0] < first[0]):
             first = (problem[0], order, name, problem[1])
     if first is not None:
         raise table.error(first[3], column=first[2], index=first[0])
-    values = {name: _as_floats(cols[name]) for name in names if name in known_numeric}
+    values = {name: _as_floats(cols[name]) for name in known_numeric}
     values.update({name: _as_floats(cols[name]) for name in covariates})
     # Blank cells ("not recorded") of the optional numeric columns, NaN in ``values``.
     blanks = {name: cols[name].blank() for name in values if _blank_ok(name)}
@@ -1404,7 +1619,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
             whole = name in ("direction", "cycle") and name not in blanks
             data[name] = column.astype(np.int64) if whole else column
     for name in names:
-        if name in covariates:
+        if name in is_covariate:
             data[name] = values[name]
         elif name in text_extras:
             data[name] = cols[name].original

@@ -17,6 +17,7 @@ cell C17``.
 from __future__ import annotations
 
 import datetime as dt
+import io
 from pathlib import Path
 
 import numpy as np
@@ -83,15 +84,17 @@ def _column(name: str, cells: list, decimal: str) -> _Column:
 
 
 def read_spreadsheet(path: Path, shown: str, *, sheet: str | None = None,
-                     decimal: str = ".") -> _Table:
+                     decimal: str = ".", data: bytes | None = None) -> _Table:
     """Read one sheet of a spreadsheet as a table (the first sheet unless ``sheet`` names one).
 
-    ``decimal`` is the decimal mark of numbers written as text cells."""
+    ``decimal`` is the decimal mark of numbers written as text cells; ``data`` the file's
+    bytes where a stream (a pipe) was read already."""
     from python_calamine import CalamineWorkbook
 
-    _read_bytes(path, shown)  # existence, directory and empty-file checks
+    read = _read_bytes(path, shown, data)  # existence, directory and empty-file checks
     try:
-        workbook = CalamineWorkbook.from_path(str(path))
+        workbook = (CalamineWorkbook.from_path(str(path)) if data is None
+                    else CalamineWorkbook.from_filelike(io.BytesIO(read)))
         sheets = list(workbook.sheet_names)
     except Exception as exc:  # calamine raises several types for a corrupt file
         raise BenchDataError(shown, f"not a table: cannot read it as a spreadsheet ({exc})"

@@ -36,14 +36,15 @@ import numpy as np
 import pandas as pd
 
 from .._data._bench import (
-    PARQUET_SUFFIXES,
     _as_floats,
     _check_missing,
     _check_time_increases,
+    _file_kind,
     _first_problem,
     _first_true,
     _read_csv,
     _read_parquet,
+    _stream_bytes,
     _Table,
 )
 from .._data._bench import (
@@ -148,16 +149,20 @@ def load_decay(path: str | os.PathLike) -> DecayData:
     """
     shown = str(path)
     p = Path(path)
-    table = _read_parquet(p, shown) if p.suffix.lower() in PARQUET_SUFFIXES else _read_csv(
-        p, shown)
+    stream = _stream_bytes(p, shown)  # a pipe or /dev/stdin, read once (None for a file)
+    if _file_kind(p, stream) == "parquet":
+        table = _read_parquet(p, shown, stream)
+    else:
+        table = _read_csv(p, shown, data=stream)
     _check_units(table)
     angle_col, angle_unit = _check_required(table)
     names, cols, n = table.names, table.columns, table.n_rows
 
     numeric = [name for name in names if _quantity_of(name) is not None]
+    is_numeric = set(numeric)
     first = None
     for order, name in enumerate(names):
-        if name not in numeric:
+        if name not in is_numeric:
             continue
         problem = _first_problem(cols[name])
         if problem is not None and (first is None or problem[0] < first[0]):
