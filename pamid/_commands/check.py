@@ -27,7 +27,18 @@ import math
 import time
 from pathlib import Path
 
-from .dynamics import _finite, _safe, _stage
+from .dynamics import (
+    MAX_SEED,
+    _allow_negative_numbers,
+    _count,
+    _finite,
+    _plot_unit,
+    _safe,
+    _stage,
+)
+
+#: Most posterior draws per trial that ``--posterior-draws`` simulates (one batched call).
+MAX_POSTERIOR_DRAWS = 100_000
 
 
 def register(subparsers) -> None:
@@ -61,12 +72,32 @@ def register(subparsers) -> None:
                           "its coverage of the recording (default 0: off)")
     chk.add_argument("--seed", type=int, default=0, help="PRNG seed for the posterior draws")
     chk.set_defaults(func=cmd_check_decays)
+    _allow_negative_numbers(chk)
 
 
-def _modal(block: dict, source: str, inertia: float) -> dict:
-    """ζ and f_n (Hz) of one model block, from ζ/f_n or from k/c."""
+#: The keys of a model block that ``check-decays`` reads (ζ and f_n, or k and c).
+MODEL_KEYS = ("zeta", "natural_frequency_Hz", "stiffness_Nm_per_rad", "damping_Nms_per_rad")
+
+
+def _modal(block: dict, source: str, inertia: float, path: str = "", where: str = "") -> dict:
+    """ζ and f_n (Hz) of one model block, from ζ/f_n or from k/c; None if it has neither.
+
+    A key that is there but holds no finite number (NaN, Infinity, text) is an error naming
+    the key (``where`` is the block's place in the JSON, ``path`` the file); null counts as
+    absent (``pamid damping`` writes null where it has no estimate).
+    """
+    for key in MODEL_KEYS:
+        value = block.get(key)
+        if value is not None and not _number(value):
+            what = ("NaN (not a number)" if isinstance(value, float) and math.isnan(value)
+                    else f"{'-' if value < 0 else ''}Infinity (not a finite number)"
+                    if isinstance(value, float) else
+                    f"{json.dumps(value)} ({type(value).__name__}, not a number)")
+            raise ValueError(f"--model-json: {path}: {where}{key} is {what}; the model needs a "
+                             "finite number there")
     if source == "fit" and isinstance(block.get("trajectory_fit"), dict):
-        fitted = _modal(block["trajectory_fit"], "decrement", inertia)
+        fitted = _modal(block["trajectory_fit"], "decrement", inertia, path,
+                        f"{where}trajectory_fit.")
         if fitted is not None:
             return {**fitted, "source": "trajectory fit"}
     zeta, f_n = block.get("zeta"), block.get("natural_frequency_Hz")
@@ -76,7 +107,7 @@ def _modal(block: dict, source: str, inertia: float) -> dict:
     k, c = block.get("stiffness_Nm_per_rad"), block.get("damping_Nms_per_rad")
     if _number(k) and _number(c) and k > 0:
         omega = math.sqrt(k / inertia)
-        return {"zeta": c / (2.0 * math.sqrt(k * inertia)),
+        return {"zeta": c / (2.0 * inertia * omega),  # c = 2·ζ·√(k·J) = 2·ζ·J·ω_n
                 "natural_frequency_Hz": omega / (2.0 * math.pi), "source": "k and c"}
     return None
 
@@ -91,19 +122,25 @@ def _load_models(path: str, source: str, inertia: float, trials, pooled: bool) -
         raise ValueError(f"--model-json: file not found: {path}")
     try:
         model = json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"--model-json: {path} is not JSON ({exc})") from None
     if not isinstance(model, dict):
         raise ValueError(f"--model-json: {path} must hold one JSON object")
     blocks = {}
     if isinstance(model.get("trials"), list):
-        blocks = {str(b.get("trial")): b for b in model["trials"] if isinstance(b, dict)}
-    fallback = model.get("pooled") if isinstance(model.get("pooled"), dict) else model
+        blocks = {str(b.get("trial")): (i, b) for i, b in enumerate(model["trials"])
+                  if isinstance(b, dict)}
+    has_pooled = isinstance(model.get("pooled"), dict)
+    fallback = model["pooled"] if has_pooled else model
     use_own = not pooled and all(t in blocks for t in trials)
     out = []
     for t in trials:
-        block = blocks[t] if use_own else fallback
-        m = _modal(block, source, inertia)
+        if use_own:
+            i, block = blocks[t]
+            where = f"trials[{i}]."
+        else:
+            block, where = fallback, "pooled." if has_pooled else ""
+        m = _modal(block, source, inertia, path, where)
         if m is None:
             raise ValueError(f"--model-json: {path} gives neither zeta and "
                              "natural_frequency_Hz nor stiffness_Nm_per_rad and "
@@ -123,7 +160,7 @@ def check_decays(data, models: list[dict], inertia: float) -> tuple[list[dict], 
     import jax.numpy as jnp
     import numpy as np
 
-    from .._dynamics._decay import analyze_decays
+    from .._dynamics._decay import _angle_unit, analyze_decays
     from .._sim._oscillator import DampedOscillator, simulate_oscillator
 
     report = analyze_decays(data, inertia, fit=False)
@@ -136,54 +173,81 @@ def check_decays(data, models: list[dict], inertia: float) -> tuple[list[dict], 
         windows.append((float(times[0]), float(times[-1])))
         rates.append((len(t) - 1) / (t[-1] - t[0]))
     rate = float(max(rates))
+    for m in models:
+        if m["natural_frequency_Hz"] >= rate / 2.0:
+            raise ValueError(
+                f"--model-json: the model's f_n = {m['natural_frequency_Hz']:g} Hz ({m['model']}) "
+                f"is at or above the recordings' Nyquist frequency {rate / 2.0:g} Hz: the "
+                "recording cannot show it")
     duration = max(w1 - w0 for w0, w1 in windows)
     zeta = jnp.array([m["zeta"] for m in models])
     f_n = jnp.array([m["natural_frequency_Hz"] for m in models])
-    osc = DampedOscillator.from_modal(zeta, f_n, inertia, jnp.array(equilibria))
-    run = simulate_oscillator(osc, jnp.array(starts), 0.0, duration_s=duration,
+    # Simulated in a unit (a power of two) that keeps the angles, and the rates ω·β, far
+    # from overflow; the decay is linear in the state and J cancels out of it.
+    unit = _angle_unit(np.concatenate([data.arrays(trial)[1] for trial in report.trials]))
+    # (Divided in NumPy: XLA flushes subnormal numbers such as 1e-320 to zero.)
+    osc = DampedOscillator.from_modal(zeta, f_n, 1.0, jnp.array(np.divide(equilibria, unit)))
+    run = simulate_oscillator(osc, jnp.array(np.divide(starts, unit)), 0.0, duration_s=duration,
                               sample_rate_Hz=rate, with_rate=False)  # one batched call
     sim_t = np.asarray(run.time_s)
-    sim = np.asarray(run.angle_rad)
+    sim = np.asarray(run.angle_rad)  # in unit
     rows, curves = [], {}
     for i, trial in enumerate(report.trials):
         t, y = data.arrays(trial)
         w0, w1 = windows[i]
         inside = (t >= w0) & (t <= w1)
-        simulated = np.interp(t[inside] - w0, sim_t, sim[i])
-        resid = simulated - y[inside]
+        resid = np.interp(t[inside] - w0, sim_t, sim[i]) - y[inside] / unit
         m, dec = models[i], report.decrement[i]
         f_d = m["natural_frequency_Hz"] * math.sqrt(1.0 - m["zeta"] ** 2)
         wn = 2.0 * math.pi * m["natural_frequency_Hz"]
         rows.append({
             "trial": trial,
             "model": m["model"], "model_source": m["source"],
-            "rms_error_rad": float(np.sqrt(np.mean(resid**2))),
-            "max_abs_error_rad": float(np.max(np.abs(resid))),
+            "rms_error_rad": _rms(resid) * unit,
+            "max_abs_error_rad": float(np.max(np.abs(resid))) * unit,
             "frequency_error_Hz": f_d - dec.frequency_Hz,
             "zeta_error": m["zeta"] - dec.zeta,
             "model_zeta": m["zeta"], "model_natural_frequency_Hz": m["natural_frequency_Hz"],
             "model_frequency_Hz": f_d,
             "model_stiffness_Nm_per_rad": inertia * wn**2,
             "model_damping_Nms_per_rad": 2.0 * m["zeta"] * inertia * wn,
-            "recorded_zeta": dec.zeta, "recorded_zeta_ci95": list(dec.zeta_ci95),
+            "recorded_zeta": dec.zeta, "recorded_zeta_ci95": dec.zeta_ci95,
             "recorded_frequency_Hz": dec.frequency_Hz,
-            "recorded_frequency_Hz_ci95": list(dec.frequency_Hz_ci95),
-            "zeta_within_recorded_ci95": bool(dec.zeta_ci95[0] <= m["zeta"] <= dec.zeta_ci95[1]),
+            "recorded_frequency_Hz_ci95": dec.frequency_Hz_ci95,
+            "recorded_interval_notes": dec.interval_notes,
+            "zeta_within_recorded_ci95": (None if dec.zeta_ci95 is None else
+                                          bool(dec.zeta_ci95[0] <= m["zeta"]
+                                               <= dec.zeta_ci95[1])),
+            "recorded_stable": not dec.grows, "recorded_stability": dec.stability,
             "angle0_rad": starts[i], "equilibrium_rad": equilibria[i],
             "window_s": [w0, w1], "n_samples": int(inside.sum()),
             "encoder_step_rad": report.extrema[i].quantum_rad,
         })
-        curves[trial] = (t, y, w0, sim_t + w0, sim[i], w1)
+        curves[trial] = (t, y, w0, sim_t + w0, sim[i] * unit, w1)
     return rows, curves
+
+
+def _rms(x) -> float:
+    """Root mean square, scaled by the largest |x| first so that no square under- or
+    overflows (residuals of angles of 1e-300 or 1e300 rad)."""
+    import numpy as np
+
+    top = float(np.max(np.abs(x))) if len(x) else 0.0
+    if top == 0.0 or not np.isfinite(top):
+        return top
+    return top * float(np.sqrt(np.mean((np.asarray(x) / top) ** 2)))
 
 
 def cmd_check_decays(args) -> int:
     from .._dynamics._decay_data import load_decay
-    from .._io import refuse_overwrite_input, write_text_atomic
+    from .._io import json_ready, refuse_overwrite_input, write_text_atomic
 
     quiet = args.json
     t_start = time.perf_counter()
-    inertia = _finite("--inertia", args.inertia, positive=True)
+    inertia = _finite("--inertia", args.inertia, positive=True, unit="kg·m²")
+    _count("--max-plots", args.max_plots)
+    _count("--posterior-draws", args.posterior_draws, high=MAX_POSTERIOR_DRAWS)
+    _count("--seed", args.seed, high=MAX_SEED)
     data = load_decay(args.decay)
     models = _load_models(args.model_json, args.source, inertia, list(data.trials), args.pooled)
     _stage(f"simulating {len(data.trials)} trial(s) in one batched call", quiet)
@@ -193,8 +257,6 @@ def cmd_check_decays(args) -> int:
                "simulator": "linear oscillator (Cullinan section VI), exact sampled solution",
                "trials": rows}
     posterior = pred = None
-    if args.posterior_draws < 0:
-        raise ValueError(f"--posterior-draws must be >= 0, got {args.posterior_draws}")
     if args.posterior_draws:
         import jax
 
@@ -203,7 +265,10 @@ def cmd_check_decays(args) -> int:
         _stage(f"sampling the posterior of {len(data.trials)} trial(s), then "
                f"{args.posterior_draws} draws per trial through the simulator", quiet)
         k_fit, k_pred = jax.random.split(jax.random.key(args.seed))
-        posterior = fit_decay_mcmc(data, key=k_fit, progress=not quiet)
+        try:
+            posterior = fit_decay_mcmc(data, key=k_fit, progress=not quiet)
+        except ValueError as exc:
+            raise ValueError(f"--posterior-draws: {args.decay}: {exc}") from None
         pred = posterior.predictive(k_pred, n_draws=args.posterior_draws)
         coverage = pred.coverage()
         for row, post, cov in zip(rows, posterior.intervals(inertia), coverage, strict=True):
@@ -226,6 +291,7 @@ def cmd_check_decays(args) -> int:
                                           title=f"Posterior predictive, trial {trial}")
                 payload["plots"].append(name)
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
+    payload = json_ready(payload)  # JSON has no NaN: null
     text = json.dumps(payload)
     if args.out:
         write_text_atomic(Path(args.out) / "check_decays.json",
@@ -234,7 +300,20 @@ def cmd_check_decays(args) -> int:
         print(text)
     else:
         print(_text(payload))
+    growing = [r["trial"] for r in rows if not r["recorded_stable"]]
+    if growing:  # the recording is no decay: the comparison with a decay model is void
+        if not args.json:
+            print(f"UNSTABLE: the recorded oscillation grows in trial(s) {', '.join(growing)} "
+                  "(negative damping): the decay model does not apply")
+        return 1
     return 0
+
+
+def _g(value, spec: str) -> str:
+    """``value`` formatted by ``spec``, or "—" (padded alike) where JSON holds null."""
+    if value is None:
+        return format("—", spec.replace("+", "").rstrip("gef").split(".")[0] or "")
+    return format(value, spec)
 
 
 def _text(d: dict) -> str:
@@ -242,9 +321,9 @@ def _text(d: dict) -> str:
              f"J = {d['inertia_kg_m2']:g} kg·m²",
              "  trial  model          RMS [rad]   f error [Hz]   ζ error    ζ model / recorded"]
     for r in d["trials"]:
-        lines.append(f"  {r['trial']:<6} {r['model']:<14} {r['rms_error_rad']:<11.3g} "
-                     f"{r['frequency_error_Hz']:<+14.3g} {r['zeta_error']:<+10.3g} "
-                     f"{r['model_zeta']:.4g} / {r['recorded_zeta']:.4g}")
+        lines.append(f"  {r['trial']:<6} {r['model']:<14} {_g(r['rms_error_rad'], '<11.3g')} "
+                     f"{_g(r['frequency_error_Hz'], '<+14.3g')} {_g(r['zeta_error'], '<+10.3g')} "
+                     f"{_g(r['model_zeta'], '.4g')} / {_g(r['recorded_zeta'], '.4g')}")
     posts = [r for r in d["trials"] if "posterior" in r]
     if posts:
         lines.append(f"posterior ({posts[0]['posterior']['draws']} draws per trial, simulated "
@@ -273,19 +352,21 @@ def _plot(curves, rows, out: Path, max_plots: int) -> list[str]:
         keep = st <= w1
         fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8.0, 5.5), sharex=True,
                                        gridspec_kw={"height_ratios": [3, 1.3]})
-        ax.plot(t, y, lw=0.8, color="0.4", label="recorded angle")
-        ax.plot(st[keep], sy[keep], lw=1.0, color="C0", alpha=0.85,
+        unit, unit_label = _plot_unit(y)
+        ax.plot(t, y / unit, lw=0.8, color="0.4", label="recorded angle")
+        ax.plot(st[keep], sy[keep] / unit, lw=1.0, color="C0", alpha=0.85,
                 label=f"simulated ({row['model']}), ζ = {row['model_zeta']:.4f}, "
                       f"f_n = {row['model_natural_frequency_Hz']:.4g} Hz")
         ax.axvspan(w0, w1, color="0.93", zorder=0)
-        ax.set_ylabel("angle β [rad]")
+        ax.set_ylabel(f"angle β [{unit_label}]")
         ax.set_title(f"Trial {row['trial']}: RMS {row['rms_error_rad']:.3g} rad, "
                      f"Δf {row['frequency_error_Hz']:+.3g} Hz, Δζ {row['zeta_error']:+.3g}")
         ax.legend(fontsize=8, loc="upper right")
         ax.grid(alpha=0.3)
         inside = (t >= w0) & (t <= w1)
-        ax_r.plot(t[inside], np.interp(t[inside], st, sy) - y[inside], lw=0.8, color="C3")
-        ax_r.set_ylabel("simulated −\nrecorded [rad]")
+        ax_r.plot(t[inside], (np.interp(t[inside], st, sy) - y[inside]) / unit, lw=0.8,
+                  color="C3")
+        ax_r.set_ylabel(f"simulated −\nrecorded [{unit_label}]")
         ax_r.set_xlabel("time [s]")
         ax_r.grid(alpha=0.3)
         fig.tight_layout()

@@ -16,6 +16,13 @@ import time
 import warnings
 from pathlib import Path
 
+#: Accepted nominal lengths of the muscle, mm (a PAM of 1 cm to 10 m).
+MIN_L0_MM, MAX_L0_MM = 10.0, 10_000.0
+#: Accepted initial rate of shortening, ±mm/s (10 m/s, beyond any PAM's).
+MAX_V0_MM_S = 1e4
+#: Most RK4 steps one lifting-mass run may take (about 10 s of CPU).
+MAX_RK4_STEPS = 20_000_000
+
 #: Sárosi's reported end state of the Fig. 3-6 run (400 kPa, 50 kg, x0 = 50 mm).
 FIG_3_6 = {"pressure_kPa": 400.0, "mass_kg": 50.0, "x0_mm": 50.0,
            "force_N": 493.0, "displacement_mm": 49.8}
@@ -58,6 +65,7 @@ def register(subparsers) -> None:
     lm.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     lm.add_argument("--out", help="folder for lifting_mass.png and lifting_mass.json")
     lm.set_defaults(func=cmd_lifting_mass)
+    _allow_negative_numbers(lm)
 
     from .positioning import add_positioning_parser
 
@@ -83,6 +91,7 @@ def register(subparsers) -> None:
     dmp.add_argument("--out", help="folder for plots (PNG) and damping.json")
     dmp.add_argument("--max-plots", type=int, default=6, help="trials to plot (default 6)")
     dmp.set_defaults(func=cmd_damping)
+    _allow_negative_numbers(dmp)
 
 
 def _stage(message: str, quiet: bool) -> None:
@@ -90,14 +99,64 @@ def _stage(message: str, quiet: bool) -> None:
         print(f"[pamid] {message}", file=sys.stderr, flush=True)
 
 
-def _finite(name: str, value: float, *, positive: bool = False, low=None, high=None) -> float:
-    if value is None or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    if positive and value <= 0:
-        raise ValueError(f"{name} must be positive, got {value:g}")
-    if low is not None and value < low or high is not None and value > high:
-        raise ValueError(f"{name} must lie in [{low:g}, {high:g}], got {value:g}")
+def _shown(value) -> str:
+    """An option's value as the user wrote it, with NaN spelled out."""
+    if isinstance(value, float) and math.isnan(value):
+        return "nan (not a number)"
+    return f"{value:g}" if isinstance(value, float) else repr(value)
+
+
+def _finite(name: str, value: float, *, positive: bool = False, low=None, high=None,
+            unit: str = "") -> float:
+    """``value`` of the option ``name`` if it is a finite number in the accepted range, else
+    ValueError with one line that names the option, the range and the value (NaN, ±inf,
+    out of range alike). ``positive``: > 0; ``low``/``high``: inclusive bounds."""
+    u = f" {unit}" if unit else ""
+    if positive and high is not None:
+        accepted = f"positive and at most {high:g}{u}"
+    elif positive:
+        accepted = f"positive (> 0{u})"
+    elif low is not None and high is not None:
+        accepted = f"lie in [{low:g}, {high:g}]{u}"
+    elif low is not None:
+        accepted = f"be at least {low:g}{u}"
+    elif high is not None:
+        accepted = f"be at most {high:g}{u}"
+    else:
+        accepted = "be a finite number"
+    if not accepted.startswith(("be ", "lie ")):
+        accepted = "be " + accepted
+    ok = (isinstance(value, (int, float)) and math.isfinite(value)
+          and not (positive and value <= 0)
+          and not (low is not None and value < low) and not (high is not None and value > high))
+    if not ok:
+        raise ValueError(f"{name} must {accepted}, got {_shown(value)}")
+    return float(value)
+
+
+def _count(name: str, value: int, *, low: int = 0, high: int | None = None) -> int:
+    """An integer option in [low, high]; ValueError naming the option and the range."""
+    if value < low or high is not None and value > high:
+        accepted = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
+        raise ValueError(f"{name} must be an integer {accepted}, got {value}")
     return value
+
+
+#: Seeds that :func:`jax.random.key` turns into distinct keys.
+MAX_SEED = 2**32 - 1
+
+
+def _allow_negative_numbers(parser) -> None:
+    """Let ``parser`` read ``--x0-mm -1e-3``, ``--v0-mm-s -inf`` and ``--zeta -nan`` as values.
+
+    argparse takes an argument for a value only if it looks like ``-5`` or ``-.5``; ``-1e-3``
+    or ``-inf`` would be taken for an unknown option ("expected one argument"). This parser
+    has no option that looks like a number, so every float literal is a value.
+    """
+    import re
+
+    parser._negative_number_matcher = re.compile(
+        r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
 
 
 # --------------------------------------------------------------------------------------
@@ -116,39 +175,63 @@ def cmd_lifting_mass(args) -> int:
         default_zeta,
         lifting_mass_damping,
         lifting_mass_equilibrium,
+        lifting_mass_force,
         lifting_mass_stiffness,
+        lifting_mass_substeps,
         loop_range_pct,
         settling,
         simulate_lifting_mass,
     )
+    from .._units import KPA_PER_BAR
 
     quiet = args.json
     t_start = time.perf_counter()
-    p = _finite("--pressure-kPa", args.pressure_kPa, low=0.0, high=1000.0)
-    m = _finite("--mass-kg", args.mass_kg, positive=True)
-    l0_mm = _finite("--l0-mm", args.l0_mm, positive=True)
-    x0_mm = _finite("--x0-mm", args.x0_mm, low=-0.1 * l0_mm, high=0.5 * l0_mm)
-    v0 = _finite("--v0-mm-s", args.v0_mm_s)
-    duration = _finite("--duration-s", args.duration_s, positive=True, high=3600.0)
-    rate = _finite("--sample-rate-Hz", args.sample_rate_Hz, positive=True, high=1e5)
-    g = _finite("--gravity", args.gravity, positive=True)
+    p = _finite("--pressure-kPa", args.pressure_kPa, low=0.0, high=1000.0, unit="kPa")
+    m = _finite("--mass-kg", args.mass_kg, positive=True, unit="kg")
+    l0_mm = _finite("--l0-mm", args.l0_mm, low=MIN_L0_MM, high=MAX_L0_MM, unit="mm")
+    x0_mm = _finite("--x0-mm", args.x0_mm, low=-0.1 * l0_mm, high=0.5 * l0_mm,
+                    unit=f"mm (−10 … 50 % of l0 = {l0_mm:g} mm)")
+    v0 = _finite("--v0-mm-s", args.v0_mm_s, low=-MAX_V0_MM_S, high=MAX_V0_MM_S, unit="mm/s")
+    duration = _finite("--duration-s", args.duration_s, positive=True, high=3600.0, unit="s")
+    rate = _finite("--sample-rate-Hz", args.sample_rate_Hz, positive=True, high=1e5, unit="Hz")
+    g = _finite("--gravity", args.gravity, positive=True, unit="m/s²")
     if duration * rate > 5e6:
         raise ValueError(f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples; "
                          "the limit is 5e6 (shorten --duration-s or lower --sample-rate-Hz)")
+    if round(duration * rate) < 1:
+        raise ValueError(f"--duration-s {duration:g} at --sample-rate-Hz {rate:g} gives fewer "
+                         f"than 2 samples; the duration must be at least 1/rate = "
+                         f"{1 / rate:g} s")
+    if args.zeta is not None:
+        zeta = _finite("--zeta", args.zeta, low=0.0, high=10.0)
+    h = None
+    if args.zeta is None and args.hysteresis_N_per_bar is not None:
+        h = _finite("--hysteresis-N-per-bar", args.hysteresis_N_per_bar, low=0.0, unit="N/bar")
     if p > 500.0:
         warnings.warn(f"{p:g} kPa is above the 0–500 kPa that Table 3-1 was fitted on; "
                       "eq. 2.1 is extrapolated", stacklevel=2)
 
     muscle = table_3_1()
     if args.zeta is not None:
-        zeta = _finite("--zeta", args.zeta, low=0.0, high=10.0)
         zeta_source = "given (--zeta)"
         loop = None
     else:
-        h = DEFAULT_HYSTERESIS_N_PER_BAR if args.hysteresis_N_per_bar is None else _finite(
-            "--hysteresis-N-per-bar", args.hysteresis_N_per_bar, low=0.0)
+        h = DEFAULT_HYSTERESIS_N_PER_BAR if h is None else h
         kappa_max = float(loop_range_pct(muscle, p))
         zeta = float(default_zeta(muscle, p, per_bar_N=h))
+        if zeta > 1.0:
+            # ζ = ΔU/U0 = 2·h·p·Δκ/(I + h·p·Δκ) (eq. 2.3–2.5, I = ∫F dκ of Table 3-1 over
+            # the loop): ζ > 1 means a contracting branch with less than no energy, a muscle
+            # that pushes. The largest loop is h = I/(p·Δκ), the mean force per bar.
+            from .._models._hysteresis import sarosi_force_integral
+
+            p_bar = p / KPA_PER_BAR
+            h_max = float(sarosi_force_integral(muscle, p_bar, 0.0, kappa_max)) / (
+                p_bar * kappa_max)
+            raise ValueError(
+                f"--hysteresis-N-per-bar {h:g} gives ζ = ΔU/U0 = {zeta:.3g} > 1 at {p:g} kPa "
+                f"(Sárosi eq. 2.3–2.5): the contracting branch would hold less than no "
+                f"energy; at {p:g} kPa the loop must be at most {h_max:.4g} N/bar")
         zeta_source = (f"hysteresis loop ±{h:g} N/bar around Table 3-1, Sárosi eq. 2.3–2.5, "
                        f"over κ = 0–{kappa_max:.3g} % at {p:g} kPa")
         loop = {"half_height_N_per_bar": h, "kappa_min_pct": 0.0, "kappa_max_pct": kappa_max}
@@ -156,23 +239,38 @@ def cmd_lifting_mass(args) -> int:
 
     eq = float(lifting_mass_equilibrium(model))
     if not math.isfinite(eq):
+        f_max = float(lifting_mass_force(model, -0.1 * l0_mm / 1000.0))
         raise ValueError(
             f"no static equilibrium: at {p:g} kPa the muscle cannot hold {m:g} kg anywhere "
-            "between −10 % and 50 % contraction (Sárosi eq. 2.1 with Table 3-1)")
+            "between −10 % and 50 % contraction (Sárosi eq. 2.1 with Table 3-1): it holds at "
+            f"most {f_max / g:.4g} kg under --gravity {g:g} m/s² (lower --mass-kg or raise "
+            "--pressure-kPa)")
     if eq < 0:
         warnings.warn(f"the static solution is at {100 * eq / (l0_mm / 1000):.3g} % "
                       "contraction: the muscle would be stretched beyond l0, outside the "
                       "range Table 3-1 was fitted on", stacklevel=2)
+    substeps, fastest = lifting_mass_substeps(model, x0_mm / 1000.0, v0 / 1000.0, rate)
+    n_steps = substeps * round(duration * rate)
+    if n_steps > MAX_RK4_STEPS:
+        raise ValueError(
+            f"at {m:g} kg the fastest rate of the linearised motion is {fastest:.4g} 1/s "
+            f"(ω_n = √(k/m), Sárosi eq. 2.9); RK4 needs "
+            f"{f'{substeps:.3g}' if math.isfinite(substeps) else 'more than 1e15'} steps per "
+            f"sample at {rate:g} Hz to follow it, {n_steps:.3g} steps in all over "
+            f"{duration:g} s, above the limit {MAX_RK4_STEPS:.0e} (shorten --duration-s or "
+            "raise --mass-kg)")
     _stage(f"simulating {duration:g} s at {rate:g} Hz (RK4, Sárosi eq. 2.2), ζ = {zeta:.4g}",
            quiet)
     run = simulate_lifting_mass(model, x0_mm / 1000.0, v0 / 1000.0, duration_s=duration,
-                                sample_rate_Hz=rate)
+                                sample_rate_Hz=rate, substeps=substeps)
     t = np.asarray(run.time_s)
     s = np.asarray(run.contraction_m)
     force = np.asarray(run.force_N)
     c = np.asarray(run.damping_Ns_per_m)
     if not np.all(np.isfinite(s)):
-        raise ValueError("the simulation diverged (non-finite state); check the inputs")
+        raise ValueError("the simulation diverged (non-finite state) although RK4 took "
+                         f"{substeps} step(s) per sample; check the inputs")
+    _check_reach(s, l0_mm, x0_mm, v0)
     k_eq = float(lifting_mass_stiffness(model, eq))
     c_eq = float(lifting_mass_damping(model, eq))
     wn = math.sqrt(k_eq / m)
@@ -183,7 +281,8 @@ def cmd_lifting_mass(args) -> int:
                  "ζ·2·√(k(κ)·m) (eq. 2.6, 2.9, 2.10); displacement = muscle shortening",
         "pressure_kPa": p, "mass_kg": m, "x0_mm": x0_mm, "v0_mm_s": v0, "l0_mm": l0_mm,
         "gravity_m_per_s2": g, "duration_s": duration, "sample_rate_Hz": rate,
-        "integrator": "RK4, fixed step, one step per output sample",
+        "integrator": f"RK4, fixed step, {substeps} step(s) per output sample",
+        "rk4_steps_per_sample": substeps,
         "zeta": zeta, "zeta_source": zeta_source, "hysteresis_loop": loop,
         "final_displacement_mm": float(s[-1] * 1e3),
         "final_force_N": float(force[-1]),
@@ -222,6 +321,25 @@ def cmd_lifting_mass(args) -> int:
     else:
         print(_lifting_mass_text(payload))
     return 0
+
+
+def _check_reach(s, l0_mm: float, x0_mm: float, v0_mm_s: float) -> None:
+    """A run must keep the muscle's length between 0 and 2·l0 (κ in −100 … 100 %): beyond,
+    the numbers describe no muscle; outside −10 … 50 % eq. 2.1 is extrapolated (a warning)."""
+    import numpy as np
+
+    kappa = 100.0 * np.asarray(s) / (l0_mm / 1000.0)
+    lo, hi = float(kappa.min()), float(kappa.max())
+    if lo < -100.0 or hi > 100.0:
+        raise ValueError(
+            f"from --x0-mm {x0_mm:g} at --v0-mm-s {v0_mm_s:g} the run reaches κ = "
+            f"{lo if lo < -100.0 else hi:.4g} % (l0 = {l0_mm:g} mm): a muscle length "
+            f"{'above 2·l0' if lo < -100.0 else 'below 0'}, which no muscle reaches; start "
+            "nearer the static solution or slower")
+    if lo < -10.0 or hi > 50.0:
+        warnings.warn(f"the run spans κ = {lo:.3g} … {hi:.3g} %, beyond the −10 … 50 % where "
+                      "eq. 2.1 with Table 3-1 holds (extrapolated; the muscle goes slack "
+                      "above the contraction where its force reaches 0)", stacklevel=2)
 
 
 def _lifting_mass_text(d: dict) -> str:
@@ -304,7 +422,8 @@ def cmd_damping(args) -> int:
 
     quiet = args.json
     t_start = time.perf_counter()
-    inertia = _finite("--inertia", args.inertia, positive=True)
+    inertia = _finite("--inertia", args.inertia, positive=True, unit="kg·m²")
+    _count("--max-plots", args.max_plots)
     data = load_decay(args.decay)
     _stage(f"loaded {len(data)} samples, {len(data.trials)} trial(s) from {args.decay}", quiet)
     _stage("peaks and troughs, logarithmic decrement (Cullinan eq. 8–11)"
@@ -323,12 +442,24 @@ def cmd_damping(args) -> int:
         print(json.dumps(payload))
     else:
         print(_damping_text(report))
+    code = 0
+    if not report.stable:  # a growing oscillation: the decay model does not apply
+        if not args.json:
+            print(f"UNSTABLE: {_unstable_text(report)}")
+        code = 1
     if report.fits is not None and not all(f.converged for f in report.fits):
         if not args.json:
             bad = [tr for tr, f in zip(report.trials, report.fits) if not f.converged]
             print(f"WARNING: the trajectory fit did not converge for trial(s) {bad}")
-        return 1
-    return 0
+        code = 1
+    return code
+
+
+def _unstable_text(report) -> str:
+    grows = report.growing_trials
+    which = (f"trial(s) {', '.join(grows)}" if grows else "the pooled estimate")
+    return (f"the oscillation grows in {which}: negative damping; the decay model does not "
+            "apply")
 
 
 def _fmt(v, ci=None, digits=4):
@@ -388,6 +519,15 @@ def _damping_text(report) -> str:
             f"trial {tr['trial']}: {tr['n_samples']} samples, {tr['n_extrema']} extrema used "
             f"(of {tr['n_extrema_detected']} found), encoder step {_fmt(tr['encoder_step_rad'])} "
             f"rad, noise {_fmt(tr['noise_rad'])} rad")
+        if not tr["stable"]:
+            lines.append(f"  {tr['stability']}")
+            lines.append(f"  ζ = {_fmt(tr['zeta'], tr['zeta_ci95'])}, δ = "
+                         f"{_fmt(tr['log_decrement'], tr['log_decrement_ci95'])}, f_d = "
+                         f"{_fmt(tr['frequency_Hz'])} Hz (95 % intervals)")
+            lines.append("")
+            continue
+        if tr["stability"] != "decays":
+            lines.append(f"  note: {tr['stability']}")
         lines += _comparison(tr, tr.get("trajectory_fit"))
         lines.append(
             f"  eq. 8: δ = {_fmt(tr['log_decrement_eq8'], tr['log_decrement_eq8_ci95'])} about "
@@ -404,12 +544,47 @@ def _damping_text(report) -> str:
     pooled = d["pooled"]
     lines.append(f"pooled over {d['n_trials']} trial(s) (common slopes, per-trial intercepts; "
                  "fit: inverse-variance weighted mean):")
-    lines += _comparison(pooled, pooled.get("trajectory_fit"))
-    lines += _amplitude_lines(pooled["amplitude_dependence"])
+    if pooled["stable"]:
+        lines += _comparison(pooled, pooled.get("trajectory_fit"))
+        lines += _amplitude_lines(pooled["amplitude_dependence"])
+    else:
+        lines.append(f"  {pooled['stability']}")
+    notes = _interval_notes(d)
+    if notes:
+        lines.append("")
+        lines.append("Intervals not given (—):")
+        lines += [f"  {where}: {why}" for where, why in notes]
     lines.append("")
     lines.append("Intervals: 95 %. Decrement: Student-t on the regression of ln(travel) on the "
                  "half-cycle index, propagated (delta method); fit: Wald.")
     return "\n".join(lines)
+
+
+def _interval_notes(d: dict) -> list[tuple[str, str]]:
+    """(where, why) of every interval that the damping JSON ``d`` leaves out."""
+    out = []
+    blocks = [(f"trial {tr['trial']}", tr) for tr in d["trials"]] + [("pooled", d["pooled"])]
+    for where, block in blocks:
+        if not block.get("stable", True):
+            continue
+        parts = [("", block), (" (fit)", block.get("trajectory_fit") or {}),
+                 (" (amplitude)", block.get("amplitude_dependence") or {})]
+        for suffix, part in parts:
+            for key, why in (part.get("interval_notes") or {}).items():
+                out.append((f"{where}{suffix} {key}", why))
+    return out
+
+
+def _plot_unit(y) -> tuple[float, str]:
+    """(unit, label) for an angle axis: rad, or a power of ten of rad for angles whose
+    largest magnitude lies outside 1e-6 … 1e6 rad."""
+    import numpy as np
+
+    top = float(np.max(np.abs(y))) if len(y) else 0.0
+    if top == 0.0 or not np.isfinite(top) or 1e-6 <= top <= 1e6:
+        return 1.0, "rad"
+    k = math.floor(math.log10(top))
+    return 10.0**k, f"1e{k} rad"
 
 
 def _safe(name: str) -> str:
@@ -432,14 +607,16 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
         e = report.extrema[i]
         dec = report.decrement[i]
         fig, ax = plt.subplots(figsize=(8.0, 4.5))
-        ax.plot(t, y, lw=0.8, color="0.4", label="recorded angle")
+        unit, unit_label = _plot_unit(y)  # matplotlib cannot scale an axis of 1e-300 rad
+        ax.plot(t, y / unit, lw=0.8, color="0.4", label="recorded angle")
         n = e.n_used
-        ax.plot(e.time_s[:n], e.angle_rad[:n], "o", color="C3", ms=4,
+        ax.plot(e.time_s[:n], e.angle_rad[:n] / unit, "o", color="C3", ms=4,
                 label=f"peaks/troughs used ({n})")
         if len(e.time_s) > n:
-            ax.plot(e.time_s[n:], e.angle_rad[n:], "o", mfc="none", color="C3", ms=4,
+            ax.plot(e.time_s[n:], e.angle_rad[n:] / unit, "o", mfc="none", color="C3", ms=4,
                     label="below the noise floor (not used)")
-        ax.axhline(dec.equilibrium_rad, color="k", lw=0.7, ls="--", label="β_eq (eq. 8)")
+        ax.axhline(dec.equilibrium_rad / unit, color="k", lw=0.7, ls="--",
+                   label="β_eq (eq. 8)")
         if report.fits is not None:
             f = report.fits[i]
             p = f.params
@@ -448,10 +625,10 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
                                    2 * p["zeta"] * p["omega_n_rad_s"], p["equilibrium_rad"])
             fitted = np.asarray(oscillator_response(osc, p["angle0_rad"], p["rate0_rad_s"],
                                                     tt - f.t0_s)[0])
-            ax.plot(tt, fitted, lw=1.0, color="C0", alpha=0.8,
+            ax.plot(tt, fitted / unit, lw=1.0, color="C0", alpha=0.8,
                     label=f"trajectory fit, ζ = {p['zeta']:.4f}")
         ax.set_xlabel("time [s]")
-        ax.set_ylabel("angle β [rad]")
+        ax.set_ylabel(f"angle β [{unit_label}]")
         ax.set_title(f"Free decay, trial {trial}: δ = {dec.log_decrement:.4f}, "
                      f"ζ = {dec.zeta:.4f} (Cullinan eq. 9, 10)")
         ax.legend(fontsize=8, loc="upper right")

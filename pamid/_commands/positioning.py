@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+from .dynamics import MAX_SEED, _allow_negative_numbers, _count, _finite
+
 #: Travel the linear rig's pair allows either side of its middle (pre-contraction 20 mm).
 MAX_TARGET_MM = 20.0
 
@@ -76,17 +78,12 @@ def add_positioning_parser(systems_subparsers) -> None:
     ps.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     ps.add_argument("--out", help="folder for positioning.png and positioning.json")
     ps.set_defaults(func=cmd_positioning)
+    _allow_negative_numbers(ps)
 
 
 def _stage(message: str, quiet: bool) -> None:
     if not quiet:
         print(f"[pamid] {message}", file=sys.stderr, flush=True)
-
-
-def _finite(name: str, value: float, low: float, high: float) -> float:
-    if value is None or not math.isfinite(value) or not low <= value <= high:
-        raise ValueError(f"{name} must be a finite number in [{low:g}, {high:g}], got {value!r}")
-    return float(value)
 
 
 def _num(x, digits: int | None = None) -> float | None:
@@ -113,17 +110,23 @@ def cmd_positioning(args) -> int:
 
     quiet = args.json
     t_start = time.perf_counter()
-    target = _finite("--target-mm", args.target_mm, -MAX_TARGET_MM, MAX_TARGET_MM)
-    temperature = _finite("--temperature-C", args.temperature_C, -40.0, 100.0)
-    duration = _finite("--duration-s", args.duration_s, 0.05, 120.0)
-    if args.draws < 0 or args.draws > 100_000:
-        raise ValueError(f"--draws must be in [0, 100000], got {args.draws}")
+    target = _finite("--target-mm", args.target_mm, low=-MAX_TARGET_MM, high=MAX_TARGET_MM,
+                     unit="mm")
+    temperature = _finite("--temperature-C", args.temperature_C, low=-40.0, high=100.0,
+                          unit="°C")
+    duration = _finite("--duration-s", args.duration_s, low=0.05, high=120.0, unit="s")
+    _count("--draws", args.draws, high=100_000)
+    _count("--seed", args.seed, high=MAX_SEED)
+    _count("--muscle", args.muscle)
     if args.fit:
         try:
             fit = json.loads(Path(args.fit).read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ValueError(f"--fit {args.fit}: cannot read a JSON object ({exc})") from exc
-        muscle, se = sarosi_from_fit_json(fit, args.muscle)
+        try:
+            muscle, se = sarosi_from_fit_json(fit, args.muscle)
+        except ValueError as exc:
+            raise ValueError(f"--fit {args.fit}: {exc}") from None
         source = f"{args.fit} (muscle {args.muscle})"
     else:
         muscle = table_3_1()
@@ -137,9 +140,10 @@ def cmd_positioning(args) -> int:
     rig = linear_rig(muscle, temperature_C=temperature)
     _stage(f"simulating {duration:g} s of positioning to {target:g} mm (10 ms samples, RK4)", quiet)
     run = simulate_positioning(rig, controller, target, duration_s=duration)
-    m = {k: float(v) for k, v in positioning_metrics(run, 0.0, 0.01).items()}
     if not np.all(np.isfinite(np.asarray(run.position))):
-        raise ValueError("the simulation diverged (non-finite state); check the constants")
+        raise ValueError(f"the simulation diverged (non-finite state) with the constants of "
+                         f"{source}; check them")
+    m = {k: float(v) for k, v in positioning_metrics(run, 0.0, 0.01).items()}
     payload = {
         "system": "positioning",
         "rig": "Sárosi Fig. 2-4: two DMSP-20-200N, MPYE 5/3 valve, 600 kPa, 10 ms, 0.01 mm",
@@ -191,6 +195,7 @@ def cmd_positioning(args) -> int:
             "n": args.draws,
             "seed": args.seed,
             "method": "independent normals from the Wald intervals",
+            "n_diverged": int(np.sum(~np.isfinite(np.asarray(dm["steady_state_error"])))),
             **summary,
         }
     if args.out:
@@ -235,6 +240,9 @@ def _text(d: dict) -> str:
     ]
     if "draws" in d:
         dr = d["draws"]
+        if dr.get("n_diverged"):
+            lines.append(f"  {dr['n_diverged']} of {dr['n']} draws diverged (non-finite "
+                         "state): left out of the statistics below")
         for key in ("settling_time_s", "overshoot_mm", "steady_state_error_mm"):
             s = dr[key]
             lines.append(

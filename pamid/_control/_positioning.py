@@ -488,6 +488,9 @@ def positioning_metrics(
     * ``valve_switches_settled``: changes of the valve voltage after settling (0 for a
       chattering-free controller).
 
+    A run whose position or reading is not finite (it diverged) gets NaN for every time and
+    distance, not the "settled at once" that comparisons with NaN would give.
+
     Arrays of the batch shape (jnp; works under jit and vmap).
     """
     r = run.target[-1]
@@ -513,14 +516,21 @@ def positioning_metrics(
         ],
         axis=-1,
     )
+    finite = jnp.all(jnp.isfinite(run.position) & jnp.isfinite(run.reading), axis=-1)
+
+    def real(x):  # NaN for a diverged run
+        return jnp.where(finite, x, jnp.nan)
+
     return {
-        "reach_time_s": t_reach,
-        "settling_time_s": t_settle,
-        "settling_time_2pct_s": jnp.where(last_out2 < n - 1, (last_out2 + 1) * dt, jnp.nan),
-        "overshoot": jnp.maximum(jnp.max(direction * (run.position - r), axis=-1), 0.0),
-        "overshoot_reading": jnp.maximum(jnp.max(direction * (run.reading - r), axis=-1), 0.0),
-        "steady_state_error": jnp.abs(r - run.position[..., -1]),
-        "steady_state_error_reading": jnp.abs(r - run.reading[..., -1]),
+        "reach_time_s": real(t_reach),
+        "settling_time_s": real(t_settle),
+        "settling_time_2pct_s": real(
+            jnp.where(last_out2 < n - 1, (last_out2 + 1) * dt, jnp.nan)),
+        "overshoot": real(jnp.maximum(jnp.max(direction * (run.position - r), axis=-1), 0.0)),
+        "overshoot_reading": real(
+            jnp.maximum(jnp.max(direction * (run.reading - r), axis=-1), 0.0)),
+        "steady_state_error": real(jnp.abs(r - run.position[..., -1])),
+        "steady_state_error_reading": real(jnp.abs(r - run.reading[..., -1])),
         "valve_switches_settled": jnp.sum(changes & after, axis=-1),
     }
 
@@ -538,24 +548,47 @@ def sarosi_from_fit_json(fit: dict, muscle: int = 0) -> tuple[Sarosi, jnp.ndarra
     """
     from .._models._sarosi import PARAM_NAMES
 
+    if not isinstance(fit, dict):
+        raise ValueError(f"the fit must be one JSON object (pamid fit --json), not a "
+                         f"{type(fit).__name__}")
     if fit.get("model", "sarosi") != "sarosi":
         raise ValueError(f"the fit is of model {fit.get('model')!r}; positioning needs 'sarosi'")
     muscles = fit.get("muscles") or []
+    if not isinstance(muscles, list):
+        raise ValueError("the fit's 'muscles' must be a list")
     if not 0 <= muscle < len(muscles):
         raise ValueError(f"muscle index {muscle} is outside the fit's {len(muscles)} muscle(s)")
-    params = muscles[muscle].get("params", {})
-    missing = [n for n in PARAM_NAMES if n not in params or params[n].get("value") is None]
+    params = muscles[muscle].get("params", {}) if isinstance(muscles[muscle], dict) else {}
+    params = params if isinstance(params, dict) else {}
+    missing = [n for n in PARAM_NAMES
+               if not isinstance(params.get(n), dict) or params[n].get("value") is None]
     if missing:
         raise ValueError(f"the fit has no value for {', '.join(missing)} (muscle {muscle})")
+
+    def number(name, key, value):
+        where = f"muscles[{muscle}].params.{name}.{key}"
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"{where} must be a number, got {value!r}")
+        if not math.isfinite(value):
+            what = "NaN (not a number)" if math.isnan(value) else f"{value}"
+            raise ValueError(f"{where} is {what}; it must be a finite number")
+        return float(value)
+
     values, ses = [], []
     for name in PARAM_NAMES:
         entry = params[name]
         se = entry.get("se")
         if se is None:
-            lo, hi = entry.get("ci95") or (None, None)
-            se = (hi - lo) / (2 * 1.96) if lo is not None and hi is not None else 0.0
-        values.append(float(entry["value"]))
-        ses.append(float(se))
+            ci = entry.get("ci95")
+            lo, hi = ci if isinstance(ci, (list, tuple)) and len(ci) == 2 else (None, None)
+            se = ((number(name, "ci95", hi) - number(name, "ci95", lo)) / (2 * 1.96)
+                  if lo is not None and hi is not None else 0.0)
+        values.append(number(name, "value", entry["value"]))
+        se = number(name, "se", se)
+        if se < 0:
+            raise ValueError(f"muscles[{muscle}].params.{name}: a negative standard error "
+                             f"({se:g}) or an interval whose low end is above its high end")
+        ses.append(se)
     return Sarosi(*values), jnp.asarray(ses)
 
 

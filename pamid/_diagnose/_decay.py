@@ -37,12 +37,14 @@ def _set_fit(model_fit) -> SetFit:
 
 def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
     from .._dynamics._coulomb import fit_decay_models
-    from .._dynamics._decay import analyze_decays
+    from .._dynamics._decay import analyze_decays, check_inertia
     from ._api import _unexplained, analyse_residual, build_diagnosis
 
-    if inertia_kg_m2 is None or not inertia_kg_m2 > 0:
+    if inertia_kg_m2 is None:
         raise ValueError(f"{data.path}: a decay file needs the arm's moment of inertia: "
                          "give --inertia J in kg·m² (inertia_kg_m2=)")
+    check_inertia(inertia_kg_m2, f"{data.path}: the arm's moment of inertia "
+                                 "(--inertia, inertia_kg_m2=)")
     report = analyze_decays(data, inertia_kg_m2)
     times, angles = zip(*(data.arrays(t) for t in data.trials), strict=True)
 

@@ -59,6 +59,19 @@ Estimates (every one with a 95 % interval)
   pooled map gave T_c = 0.0012 N·m at p = 0.006: |b| = 5·10⁻⁵ rad, 0.04 steps, not
   flagged; the hidden 0.1 N·m gives |b| ≈ 4·10⁻³ rad, 2.7 steps, flagged.
 
+Honest intervals, growing oscillations, numbers of any size
+-----------------------------------------------------------
+Every interval is checked before it is reported: finite, ordered, and containing its
+estimate; one that is not (too few points, a singular regression, a half period whose
+interval reaches 0, an overdamped fit that has no logarithmic decrement) is None, and
+``interval_notes`` says why. ζ's interval is the image of δ's on both sides, also below 0.
+An oscillation whose δ lies below 0 with its whole interval grows (negative damping):
+:attr:`DecrementEstimate.grows`, "the oscillation grows: the decay model does not apply";
+the commands exit 1. Angles are analysed in a unit that keeps them near 1 rad
+(:data:`ANGLE_RANGE_RAD`, a power of two, so the rescaling is exact), and k and c, which
+scale with J, are propagated per unit J, so that 1e-300 or 1e300 rad and kg·m² neither
+overflow nor underflow.
+
 Peak and trough detection (:func:`find_extrema`), robust to encoder steps and noise: the
 period is first estimated from the spectrum; the signal is smoothed over a twentieth of a
 period; ``scipy.signal.find_peaks`` finds peaks and troughs with a prominence above the
@@ -92,7 +105,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import jax
 import jax.numpy as jnp
@@ -114,6 +127,7 @@ __all__ = [
     "NoOscillationError",
     "TrajectoryFit",
     "analyze_decays",
+    "check_inertia",
     "decrement_estimate",
     "find_extrema",
     "fit_decay_trajectories",
@@ -217,6 +231,32 @@ class Extrema:
         """Peak-to-trough travels a_j = |e_{j+1} − e_j| of the usable extrema."""
         return np.abs(np.diff(self.angle_rad[: self.n_used]))
 
+    def _in_unit(self, unit: float, *, back: bool = False) -> Extrema:
+        """The extrema with every angle divided by ``unit`` (``back``: multiplied)."""
+        if unit == 1.0:
+            return self
+        f = (lambda x: x * unit) if back else (lambda x: x / unit)
+        return replace(self, angle_rad=f(self.angle_rad), quantum_rad=f(self.quantum_rad),
+                       noise_rad=f(self.noise_rad), min_travel_rad=f(self.min_travel_rad))
+
+
+#: Angles (or travels) whose largest magnitude lies in this range, in rad, are analysed as
+#: they are; others are first divided by a power of two that brings it to 1 … 2 (exact in
+#: floating point), and the results multiplied back. Squares of angles 1e155 rad overflow,
+#: those of 1e-160 rad underflow, and the spectrum, the regressions' covariances and the fit
+#: would silently go wrong.
+ANGLE_RANGE_RAD = (2.0**-20, 2.0**20)
+
+
+def _angle_unit(values) -> float:
+    """1.0, or the power of two that :data:`ANGLE_RANGE_RAD` asks ``values`` to be divided by."""
+    a = np.abs(np.asarray(values, float))
+    a = a[np.isfinite(a)]
+    top = float(a.max()) if a.size else 0.0
+    if top == 0.0 or ANGLE_RANGE_RAD[0] <= top <= ANGLE_RANGE_RAD[1]:
+        return 1.0
+    return math.ldexp(1.0, math.frexp(top)[1] - 1)
+
 
 def _quantum(y: np.ndarray) -> float:
     """The encoder step: the typical smallest nonzero change, if many changes are zero."""
@@ -298,14 +338,22 @@ def _refine(t: np.ndarray, y: np.ndarray, t0: float, half: float, kind: int):
 def find_extrema(time_s, angle_rad) -> Extrema:
     """Peaks and troughs of a decay, robust to encoder steps and noise (module docstring).
 
+    Angles of any magnitude are analysed in a unit that keeps them near 1
+    (:data:`ANGLE_RANGE_RAD`); the extrema come back in rad.
+
     Raises:
         NoOscillationError: fewer than :data:`MIN_EXTREMA` usable extrema.
     """
-    t = np.asarray(time_s, float)
     y = np.asarray(angle_rad, float)
+    unit = _angle_unit(y)
+    return _find_extrema(np.asarray(time_s, float), y / unit, unit)._in_unit(unit, back=True)
+
+
+def _find_extrema(t: np.ndarray, y: np.ndarray, unit: float) -> Extrema:
+    """:func:`find_extrema` on angles ``y`` in ``unit`` rad (``unit`` only for messages)."""
     q = _quantum(y)
     sigma = _noise_sd(y)
-    noise = math.sqrt(sigma**2 + q**2 / 12.0)
+    noise = math.hypot(sigma, q / math.sqrt(12.0))
     span = float(np.ptp(y))
     period = _period_guess(t, y)
     if not np.isfinite(period) or span == 0.0:
@@ -361,8 +409,8 @@ def find_extrema(time_s, angle_rad) -> Extrema:
     if n_used < MIN_EXTREMA:
         raise NoOscillationError(
             f"no oscillation found: {n_used} peak(s)/trough(s) with a travel above the noise "
-            f"floor {min_travel:.3g} rad (encoder step {q:.3g} rad, noise {sigma:.3g} rad); "
-            f"need at least {MIN_EXTREMA}"
+            f"floor {min_travel * unit:.3g} rad (encoder step {q * unit:.3g} rad, noise "
+            f"{sigma * unit:.3g} rad); need at least {MIN_EXTREMA}"
         )
     return Extrema(times_a, values_a, kinds_a, n_used, float(period), q, sigma, min_travel)
 
@@ -408,15 +456,19 @@ def _gls(x: np.ndarray, y: np.ndarray, v: np.ndarray):
     """
     n, p = x.shape
     dof = n - p
+    nothing = np.full(p, math.nan), np.full((p, p), math.nan), dof
     if dof < 1:
-        return np.full(p, math.nan), np.full((p, p), math.nan), dof
-    chol = np.linalg.cholesky(v)
-    xw = scipy.linalg.solve_triangular(chol, x, lower=True)
-    yw = scipy.linalg.solve_triangular(chol, y, lower=True)
-    coef, *_ = np.linalg.lstsq(xw, yw, rcond=None)
-    r = yw - xw @ coef
-    s2 = float(r @ r) / dof
-    return coef, s2 * np.linalg.inv(xw.T @ xw), dof
+        return nothing
+    try:
+        chol = np.linalg.cholesky(v)
+        xw = scipy.linalg.solve_triangular(chol, x, lower=True)
+        yw = scipy.linalg.solve_triangular(chol, y, lower=True)
+        coef, *_ = np.linalg.lstsq(xw, yw, rcond=None)
+        r = yw - xw @ coef
+        s2 = float(r @ r) / dof
+        return coef, s2 * np.linalg.inv(xw.T @ xw), dof
+    except np.linalg.LinAlgError:  # a covariance or design too ill-conditioned to solve
+        return nothing
 
 
 def _travel_cov(a: np.ndarray) -> np.ndarray:
@@ -467,6 +519,32 @@ def _log_interval(value, rel_se, dof):
     return [value * math.exp(-t * rel_se), value * math.exp(t * rel_se)]
 
 
+def _settle_intervals(out: dict, reasons: dict | None = None) -> dict:
+    """Make every ``<name>_ci95`` of ``out`` honest, in place; returns the notes.
+
+    An interval is kept when it is finite, ordered and contains its estimate ``out[name]``;
+    otherwise it becomes None and the note (``reasons[key]``, or what is wrong with it)
+    says why, keyed by the interval's name.
+    """
+    notes = {}
+    for key in [k for k in out if k.endswith("_ci95") and k[:-5] in out]:
+        value, ci = out[key[:-5]], out[key]
+        if ci is None:
+            why = "no interval"
+        elif value is None or not np.isfinite(value):
+            why = "no estimate"
+        elif not all(x is not None and np.isfinite(x) for x in ci):
+            why = "no finite standard error (too few points, or a singular regression)"
+        elif not ci[0] <= value <= ci[1]:
+            why = f"[{ci[0]:.6g}, {ci[1]:.6g}] is not ordered around the estimate {value:.6g}"
+        else:
+            out[key] = [float(ci[0]), float(ci[1])]
+            continue
+        out[key] = None
+        notes[key] = (reasons or {}).get(key, why)
+    return notes
+
+
 def _equilibrium(values: np.ndarray) -> float:
     """β_eq from e_{j+1} = α + β·e_j: the fixed point α/(1 − β) (β ≈ −r)."""
     if len(values) < 3:
@@ -508,29 +586,87 @@ class DecrementEstimate:
     damping_Nms_per_rad: float
     damping_Nms_per_rad_ci95: list
     amplitude_dependence: dict = field(default_factory=dict)
+    #: Why an interval is None (the interval's name → the reason).
+    interval_notes: dict = field(default_factory=dict)
+
+    @property
+    def grows(self) -> bool:
+        """The oscillation grows: δ and its whole 95 % interval lie below 0 (negative
+        damping), and the decay model does not apply."""
+        ci = self.log_decrement_ci95
+        return bool(self.log_decrement < 0 and (ci is None or ci[1] < 0))
+
+    @property
+    def stability(self) -> str:
+        """One line on whether the oscillation decays (what the decay model needs)."""
+        delta = self.log_decrement
+        if self.grows:
+            return (f"the oscillation grows: the decay model does not apply (negative "
+                    f"damping, δ = {delta:.4g}, ζ = {self.zeta:.4g} < 0)")
+        if delta < 0:
+            lo, hi = self.log_decrement_ci95
+            return (f"no damping resolved: δ = {delta:.4g}, its 95 % interval "
+                    f"[{lo:.4g}, {hi:.4g}] contains 0")
+        return "decays"
+
+    def _times_unit(self, unit: float) -> DecrementEstimate:
+        """The estimate of travels measured in ``unit`` rad, in rad."""
+        if unit == 1.0:
+            return self
+        amp = dict(self.amplitude_dependence)
+        for key, power in _AMPLITUDE_ANGLE_POWER.items():
+            if amp.get(key) is not None:
+                value = amp[key]
+                f = unit if power > 0 else 1.0 / unit
+                amp[key] = [v * f for v in value] if isinstance(value, list) else value * f
+        return replace(self, equilibrium_rad=self.equilibrium_rad * unit,
+                       amplitude_dependence=amp)
 
     def to_dict(self) -> dict:
-        return {k: _plain(v) for k, v in self.__dict__.items()}
+        out = {k: _plain(v) for k, v in self.__dict__.items()}
+        out["stable"] = not self.grows
+        out["stability"] = self.stability
+        return out
+
+
+#: The angle dimension of the amplitude-dependence results (+1: rad, −1: per rad).
+_AMPLITUDE_ANGLE_POWER = {"slope_per_rad": -1, "slope_per_rad_ci95": -1, "coulomb_Nm": 1,
+                          "coulomb_Nm_ci95": 1, "coulomb_shift_rad": 1,
+                          "resolution_floor_rad": 1}
 
 
 def _derived(delta, delta_se, delta_dof, half_period, half_period_se, time_dof, inertia):
-    """ζ, f_d, f_n, k, c with intervals from δ and the half period (module docstring)."""
+    """ζ, f_d, f_n, k, c with intervals from δ and the half period (module docstring).
+
+    Returns the values, their intervals and ``interval_notes`` (why an interval is None).
+    """
     zeta = log_decrement_to_zeta(delta)
     lo, hi = _interval(delta, delta_se, delta_dof)
-    zeta_ci = [log_decrement_to_zeta(max(lo, 0.0)), log_decrement_to_zeta(hi)]
+    zeta_ci = [log_decrement_to_zeta(lo), log_decrement_to_zeta(hi)]  # eq. 10 is monotone
     zeta_se = 4.0 * math.pi**2 / (4.0 * math.pi**2 + delta**2) ** 1.5 * delta_se
     f_d = 1.0 / (2.0 * half_period)
     rel_f = half_period_se / half_period  # se of ln f_d
     t_lo, t_hi = _interval(half_period, half_period_se, time_dof)
-    f_ci = [1.0 / (2.0 * t_hi), 1.0 / (2.0 * t_lo)]
+    reasons = {}
+    if t_lo > 0:
+        f_ci = [1.0 / (2.0 * t_hi), 1.0 / (2.0 * t_lo)]
+    else:
+        f_ci = None
+        reasons["frequency_Hz_ci95"] = ("the half period's interval reaches 0 s, so the "
+                                        "frequency's has no upper end")
     f_n = f_d / math.sqrt(1.0 - zeta**2)
     rel_fn = math.hypot(rel_f, zeta / (1.0 - zeta**2) * zeta_se)
     dof = min(delta_dof, time_dof)
-    k = inertia * (2.0 * math.pi * f_n) ** 2
-    c = 2.0 * zeta * math.sqrt(k * inertia)  # Cullinan eq. 11
-    rel_c = math.hypot((1.0 / zeta + zeta / (1.0 - zeta**2)) * zeta_se, rel_f) if zeta > 0 \
-        else math.nan
-    return {
+    omega_n = 2.0 * math.pi * f_n
+    k = inertia * omega_n**2
+    c = 2.0 * zeta * inertia * omega_n  # Cullinan eq. 11, c = 2·ζ·√(k·J) with k = J·ω_n²
+    if c > 0:
+        rel_c = math.hypot((1.0 / zeta + zeta / (1.0 - zeta**2)) * zeta_se, rel_f)
+        c_ci = _log_interval(c, rel_c, dof)
+    else:  # no positive damping: on the linear scale, d c = 2·J·(ω_n·dζ + ζ·dω_n)
+        c_se = 2.0 * inertia * omega_n * math.hypot(zeta_se, zeta * rel_fn)
+        c_ci = _interval(c, c_se, dof)
+    out = {
         "zeta": zeta,
         "zeta_ci95": zeta_ci,
         "frequency_Hz": f_d,
@@ -540,8 +676,10 @@ def _derived(delta, delta_se, delta_dof, half_period, half_period_se, time_dof, 
         "stiffness_Nm_per_rad": k,
         "stiffness_Nm_per_rad_ci95": _log_interval(k, 2.0 * rel_fn, dof),
         "damping_Nms_per_rad": c,
-        "damping_Nms_per_rad_ci95": _log_interval(c, rel_c, dof),
+        "damping_Nms_per_rad_ci95": c_ci,
     }
+    out["interval_notes"] = _settle_intervals(out, reasons)
+    return out
 
 
 def _amplitude_dependence(travel_lists, stiffness, quantum_rad=0.0):
@@ -600,8 +738,8 @@ def _amplitude_dependence(travel_lists, stiffness, quantum_rad=0.0):
     coef, cov, dof_m = _gls(design, y, _block(covs))
     r, b = float(coef[0]), float(coef[1])
     tc = -b * stiffness / (2.0 * (1.0 + r))
-    grad = np.array([b * stiffness / (2.0 * (1.0 + r) ** 2), -stiffness / (2.0 * (1.0 + r))])
-    tc_se = math.sqrt(max(float(grad @ cov @ grad), 0.0))
+    grad = np.array([b / (2.0 * (1.0 + r) ** 2), -1.0 / (2.0 * (1.0 + r))])  # of T_c / k
+    tc_se = abs(stiffness) * math.sqrt(max(float(grad @ cov @ grad), 0.0))
     delta_v = -2.0 * math.log(r) if r > 0 else math.nan
     t_b = b / math.sqrt(cov[1, 1]) if cov[1, 1] > 0 else math.nan
     p_tc = float(2.0 * _stats().t.sf(abs(t_b), dof_m)) if np.isfinite(t_b) else math.nan
@@ -621,6 +759,9 @@ def _amplitude_dependence(travel_lists, stiffness, quantum_rad=0.0):
     out.update(coulomb_shift_rad=shift, resolution_floor_rad=floor,
                statistically_significant=statistically, practically_significant=practically)
     out["amplitude_dependent"] = statistically and practically
+    notes = _settle_intervals(out)
+    if notes:
+        out["interval_notes"] = notes
     if not statistically:
         out["note"] = "no significant change of the decrement with amplitude (p ≥ 0.01)"
     elif not practically:
@@ -637,7 +778,18 @@ def _amplitude_dependence(travel_lists, stiffness, quantum_rad=0.0):
 
 
 def pooled_decrement_estimate(extrema: list[Extrema], inertia_kg_m2: float) -> DecrementEstimate:
-    """Decrement estimates from one or more trials (common slopes, per-trial intercepts)."""
+    """Decrement estimates from one or more trials (common slopes, per-trial intercepts).
+
+    Travels of any magnitude are regressed in a unit that keeps them near 1
+    (:data:`ANGLE_RANGE_RAD`); the estimates come back in rad. An oscillation that grows
+    (:attr:`DecrementEstimate.grows`) is not tested for amplitude dependence.
+    """
+    unit = _angle_unit(np.concatenate([e.travels_rad for e in extrema]))
+    estimate = _pooled_decrement_estimate([e._in_unit(unit) for e in extrema], inertia_kg_m2)
+    return estimate._times_unit(unit)
+
+
+def _pooled_decrement_estimate(extrema: list[Extrema], inertia_kg_m2: float):
     travels = [e.travels_rad for e in extrema]
     idx = [np.arange(len(a), dtype=float) for a in travels]
     slope, se, dof = _common_slope_gls(idx, [np.log(a) for a in travels],
@@ -666,21 +818,26 @@ def pooled_decrement_estimate(extrema: list[Extrema], inertia_kg_m2: float) -> D
     times = [e.used[0] for e in extrema]
     hslope, hse, hdof, _ = _slope([np.arange(len(t), dtype=float) for t in times], times)
     derived = _derived(delta, delta_se, dof, hslope, hse, hdof, inertia_kg_m2)
-    quantum = max((e.quantum_rad for e in extrema), default=0.0)
-    amp = _amplitude_dependence(travels, derived["stiffness_Nm_per_rad"], quantum)
-    return DecrementEstimate(
+    notes = derived.pop("interval_notes")
+    decrement = {"log_decrement": delta, "log_decrement_ci95": ci,
+                 "log_decrement_eq8": eq8, "log_decrement_eq8_ci95": ci8}
+    notes.update(_settle_intervals(decrement))
+    estimate = DecrementEstimate(
         n_extrema=int(sum(e.n_used for e in extrema)),
         n_travels=int(sum(len(a) for a in travels)),
-        log_decrement=delta,
-        log_decrement_ci95=ci,
         log_decrement_eq9_endpoints=float(np.mean(ends9)) if ends9 else math.nan,
-        log_decrement_eq8=eq8,
-        log_decrement_eq8_ci95=ci8,
         log_decrement_eq8_endpoints=float(np.mean(eq8_ends)) if eq8_ends else math.nan,
         equilibrium_rad=float(np.mean(eqs)),
-        amplitude_dependence=amp,
+        interval_notes=notes,
+        **decrement,
         **derived,
     )
+    if estimate.grows:
+        amp = {"amplitude_dependent": None, "note": "not tested: the oscillation grows"}
+    else:
+        quantum = max((e.quantum_rad for e in extrema), default=0.0)
+        amp = _amplitude_dependence(travels, derived["stiffness_Nm_per_rad"], quantum)
+    return replace(estimate, amplitude_dependence=amp)
 
 
 def decrement_estimate(time_s, angle_rad, inertia_kg_m2: float) -> DecrementEstimate:
@@ -746,20 +903,24 @@ class TrajectoryFit:
 
 
 def _fit_derived(theta, cov, dof, inertia):
+    """The decrement report's quantities from the fitted ζ and ω_n, with Wald intervals
+    (delta method) and ``interval_notes``. k and c scale with J: their standard errors are
+    taken per unit J and multiplied back, so that no J overflows a square."""
     zeta, omega = float(theta[0]), float(theta[1])
     t = _t(dof)
     two_pi = 2.0 * math.pi
-    sq = math.sqrt(max(1.0 - zeta**2, 0.0))
+    under = abs(zeta) < 1.0  # a damped oscillation; none when overdamped
+    sq = math.sqrt(1.0 - zeta**2) if under else math.nan
     grads = {
-        "log_decrement": (two_pi / (1.0 - zeta**2) ** 1.5, 0.0),
+        "log_decrement": (two_pi / sq**3, 0.0),
         "zeta": (1.0, 0.0),
         "frequency_Hz": (-omega * zeta / (two_pi * sq), sq / two_pi),
         "natural_frequency_Hz": (0.0, 1.0 / two_pi),
-        "stiffness_Nm_per_rad": (0.0, 2.0 * inertia * omega),
-        "damping_Nms_per_rad": (2.0 * inertia * omega, 2.0 * inertia * zeta),
+        "stiffness_Nm_per_rad": (0.0, 2.0 * omega),  # per unit J
+        "damping_Nms_per_rad": (2.0 * omega, 2.0 * zeta),  # per unit J
     }
     values = {
-        "log_decrement": _zeta_to_log_decrement(zeta),
+        "log_decrement": two_pi * zeta / sq,
         "zeta": zeta,
         "frequency_Hz": omega * sq / two_pi,
         "natural_frequency_Hz": omega / two_pi,
@@ -770,10 +931,16 @@ def _fit_derived(theta, cov, dof, inertia):
     out = {}
     for name, g in grads.items():
         g = np.asarray(g)
-        se = math.sqrt(max(float(g @ c2 @ g), 0.0))
+        se = math.sqrt(max(float(g @ c2 @ g), 0.0)) if np.all(np.isfinite(g)) else math.nan
+        if name in ("stiffness_Nm_per_rad", "damping_Nms_per_rad"):
+            se *= inertia
         out[name] = values[name]
         out[name + "_se"] = se
         out[name + "_ci95"] = [values[name] - t * se, values[name] + t * se]
+    reasons = {} if under else {
+        key: f"|ζ| = {abs(zeta):.4g} ≥ 1: overdamped, no damped oscillation"
+        for key in ("log_decrement_ci95", "frequency_Hz_ci95")}
+    out["interval_notes"] = _settle_intervals(out, reasons)
     return out
 
 
@@ -792,14 +959,21 @@ def fit_decay_trajectories(
     decrement estimates; trials are padded to one length (zero weight) and solved in one
     vmapped Levenberg–Marquardt call.
     """
-    windows, p0s, scales = [], [], []
+    windows, p0s, scales, units, centres = [], [], [], [], []
     for t, y, e, s in zip(times, angles, extrema, starts, strict=True):
         te, ve, _ = e.used
         sel = (t >= te[0]) & (t <= te[-1])
-        windows.append((t[sel] - te[0], y[sel]))
+        # Fitted about the decrement's equilibrium, in a unit that keeps the deviations near
+        # 1: a decay of 1e-12 rad about 1 rad, or of 1e155 rad, is fitted as one of 0.1 rad.
+        centre = s.equilibrium_rad if np.isfinite(s.equilibrium_rad) else 0.0
+        unit = _angle_unit(y[sel] - centre)
+        units.append(unit)
+        centres.append(centre)
+        windows.append((t[sel] - te[0], (y[sel] - centre) / unit))
         omega = 2.0 * math.pi * s.natural_frequency_Hz
-        amp = abs(ve[0] - s.equilibrium_rad) or 1.0
-        p0s.append([s.zeta, omega, ve[0], 0.0, s.equilibrium_rad])
+        angle0 = (ve[0] - centre) / unit
+        amp = abs(angle0) or 1.0
+        p0s.append([s.zeta, omega, angle0, 0.0, 0.0])
         scales.append([max(abs(s.zeta), 1e-3), omega, amp, amp * omega, amp])
     # Padded to a multiple of 512 samples, so that records of similar length share one
     # compiled solve (in a session and in the persistent compilation cache).
@@ -829,18 +1003,30 @@ def fit_decay_trajectories(
         except np.linalg.LinAlgError:
             cov_scaled = np.full((n_par, n_par), np.nan)
         cov = cov_scaled * np.outer(scale[i], scale[i])
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        in_rad = units[i] ** _FIT_ANGLE_POWER  # back from the fit's unit (exact: 2^k)
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0)) * in_rad
         tq = _t(dof)
-        params = dict(zip(FIT_NAMES, theta[i].tolist(), strict=True))
+        params = dict(zip(FIT_NAMES, (theta[i] * in_rad + centres[i] * _FIT_ANGLE_OFFSET)
+                          .tolist(), strict=True))
         cis = {k: [v - tq * s, v + tq * s] for (k, v), s in zip(params.items(), se, strict=True)}
+        notes = _settle_intervals({**params, **{k + "_ci95": v for k, v in cis.items()}})
+        cis = {k: None if k + "_ci95" in notes else v for k, v in cis.items()}
+        derived = _fit_derived(theta[i], cov, dof, inertia_kg_m2)
+        derived["interval_notes"].update(
+            {f"params_ci95.{k[:-5]}": why for k, why in notes.items()})
         te = extrema[i].used[0]
         fits.append(TrajectoryFit(
-            params=params, params_ci95=cis, derived=_fit_derived(theta[i], cov, dof,
-                                                                 inertia_kg_m2),
+            params=params, params_ci95=cis, derived=derived,
             converged=bool(ok[i]), n_steps=int(steps[i]), n_samples=n,
-            rmse_rad=math.sqrt(sse / n), t0_s=float(te[0]), t1_s=float(te[-1]),
+            rmse_rad=math.sqrt(sse / n) * units[i], t0_s=float(te[0]), t1_s=float(te[-1]),
         ))
     return fits
+
+
+#: The angle dimension of each of :data:`FIT_NAMES` (ζ and ω_n have none) …
+_FIT_ANGLE_POWER = np.array([0.0, 0.0, 1.0, 1.0, 1.0])
+#: … and which of them are angles measured from the centre of the fit (β(t0) and β_eq).
+_FIT_ANGLE_OFFSET = np.array([0.0, 0.0, 1.0, 0.0, 1.0])
 
 
 def pooled_fit(fits: list[TrajectoryFit]) -> dict:
@@ -852,13 +1038,15 @@ def pooled_fit(fits: list[TrajectoryFit]) -> dict:
         se = np.array([f.derived[name + "_se"] for f in fits])
         ok = np.isfinite(v) & np.isfinite(se) & (se > 0)
         if not ok.any():
-            out[name], out[name + "_ci95"] = math.nan, [math.nan, math.nan]
+            out[name], out[name + "_ci95"] = math.nan, None
             continue
-        w = 1.0 / se[ok] ** 2
+        smallest = float(se[ok].min())
+        w = (smallest / se[ok]) ** 2  # 1/se², relative to the smallest: no se² overflows
         mean = float(np.sum(w * v[ok]) / np.sum(w))
-        s = float(1.0 / math.sqrt(np.sum(w)))
+        s = smallest / math.sqrt(float(np.sum(w)))
         z = float(_stats().norm.ppf(0.5 + LEVEL / 2))
         out[name], out[name + "_ci95"] = mean, [mean - z * s, mean + z * s]
+    out["interval_notes"] = _settle_intervals(out)
     out["converged"] = all(f.converged for f in fits)
     return out
 
@@ -882,6 +1070,16 @@ class DecayReport:
     pooled_fit: dict | None
     n_samples: list[int]
 
+    @property
+    def growing_trials(self) -> list[str]:
+        """Trials whose oscillation grows (:attr:`DecrementEstimate.grows`)."""
+        return [t for t, d in zip(self.trials, self.decrement, strict=True) if d.grows]
+
+    @property
+    def stable(self) -> bool:
+        """No trial, and not the pooled estimate, grows: the decay model applies."""
+        return not self.growing_trials and not self.pooled.grows
+
     def to_dict(self) -> dict:
         trials = []
         for i, trial in enumerate(self.trials):
@@ -894,11 +1092,24 @@ class DecayReport:
                 row["trajectory_fit"] = self.fits[i].to_dict()
             trials.append(_plain(row))
         out = {"source": self.source, "inertia_kg_m2": self.inertia_kg_m2,
-               "n_trials": len(self.trials), "trials": trials,
+               "n_trials": len(self.trials), "stable": self.stable,
+               "growing_trials": self.growing_trials, "trials": trials,
                "pooled": self.pooled.to_dict()}
         if self.pooled_fit is not None:
             out["pooled"]["trajectory_fit"] = _plain(self.pooled_fit)
         return out
+
+
+def check_inertia(inertia_kg_m2, name: str = "the moment of inertia J") -> float:
+    """``inertia_kg_m2`` if it is a positive finite number, else ValueError naming ``name``
+    and the value (an option name such as ``--inertia`` in the commands)."""
+    value = inertia_kg_m2
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not (
+            math.isfinite(value) and value > 0):
+        shown = "nan (not a number)" if isinstance(value, float) and math.isnan(value) else (
+            f"{value:g}" if isinstance(value, (int, float)) else repr(value))
+        raise ValueError(f"{name} must be positive (> 0 kg·m²), got {shown}")
+    return float(value)
 
 
 def analyze_decays(data, inertia_kg_m2: float, *, fit: bool = True) -> DecayReport:
@@ -908,8 +1119,7 @@ def analyze_decays(data, inertia_kg_m2: float, *, fit: bool = True) -> DecayRepo
     oscillation raises :class:`~pamid.BenchDataError` naming the file, the angle column and
     the trial's first row.
     """
-    if not (inertia_kg_m2 > 0 and math.isfinite(inertia_kg_m2)):
-        raise ValueError(f"the moment of inertia must be positive (kg·m²), got {inertia_kg_m2!r}")
+    check_inertia(inertia_kg_m2)
     times, angles, extrema, estimates, counts = [], [], [], [], []
     for trial in data.trials:
         t, y = data.arrays(trial)
@@ -926,6 +1136,13 @@ def analyze_decays(data, inertia_kg_m2: float, *, fit: bool = True) -> DecayRepo
         counts.append(len(t))
         estimates.append(pooled_decrement_estimate([e], inertia_kg_m2))
     pooled = pooled_decrement_estimate(extrema, inertia_kg_m2)
+    for trial, est in zip(data.trials, estimates, strict=True):
+        if not (math.isfinite(est.stiffness_Nm_per_rad) and math.isfinite(est.frequency_Hz)):
+            raise ValueError(
+                f"{data.path}: trial '{trial}': the stiffness k = J·ω_n² is "
+                f"{est.stiffness_Nm_per_rad:g} N·m/rad with J = {inertia_kg_m2:g} kg·m² and "
+                f"f_n = {est.natural_frequency_Hz:g} Hz, beyond what a float holds; give J in "
+                "kg·m² and the time in s")
     fits = pooled_f = None
     if fit:
         fits = fit_decay_trajectories(times, angles, extrema, estimates, inertia_kg_m2)

@@ -91,12 +91,11 @@ def decay_predict(theta, x):
     return oscillator_response(osc, angle0, rate0, x[0])[0]
 
 
-def _trajectory_start(t, y, e, t_start=None):
+def _trajectory_start(t, y, e, t_start=None, fit=None):
     """(ζ, f_n, β, β̇ at ``t_start`` (default t[0]), β_eq) from the trajectory fit of a
-    record whose usable extrema ``e`` were found on it (NumPy)."""
+    record whose usable extrema ``e`` were found on it (NumPy); ``fit``: that fit, if made."""
     t_start = t[0] if t_start is None else t_start
-    est = pooled_decrement_estimate([e], 1.0)
-    fit = fit_decay_trajectories([t], [y], [e], [est], 1.0)[0]
+    fit = _trajectory_fit(t, y, e) if fit is None else fit
     p = fit.params
     osc = DampedOscillator(1.0, p["omega_n_rad_s"] ** 2,
                            2.0 * p["zeta"] * p["omega_n_rad_s"], p["equilibrium_rad"])
@@ -104,6 +103,12 @@ def _trajectory_start(t, y, e, t_start=None):
     a0, r0 = oscillator_response(osc, p["angle0_rad"], p["rate0_rad_s"], t_start - fit.t0_s)
     return [p["zeta"], p["omega_n_rad_s"] / (2.0 * math.pi), float(a0), float(r0),
             p["equilibrium_rad"]]
+
+
+def _trajectory_fit(t, y, e):
+    """The trajectory fit of one record, started from its decrement (J = 1: unused)."""
+    est = pooled_decrement_estimate([e], 1.0)
+    return fit_decay_trajectories([t], [y], [e], [est], 1.0)[0]
 
 
 def _lane_key(t, y) -> bytes:
@@ -191,6 +196,8 @@ class DecayWindows:
     n: np.ndarray  # (M,) samples per window
     dt_s: float
     encoder_step_rad: float
+    #: (M,) RMS residual of the least-squares trajectory fit (NaN where it failed), rad
+    fit_rmse_rad: np.ndarray | None = None
 
 
 def _as_trials(data):
@@ -204,7 +211,7 @@ def _as_trials(data):
 def decay_windows(data) -> DecayWindows:
     """Cut every trial to its usable decay (first to last usable extremum) and pack them."""
     trials, pairs = _as_trials(data)
-    groups, t0s, ns, dts, steps = [], [], [], [], []
+    groups, t0s, ns, dts, steps, rmses = [], [], [], [], [], []
     for t, y in pairs:
         e = find_extrema(t, y)
         te = e.used[0]
@@ -215,9 +222,11 @@ def decay_windows(data) -> DecayWindows:
         if len(_KNOWN_STARTS) > 10_000:
             _KNOWN_STARTS.clear()
         try:
-            _KNOWN_STARTS[_lane_key(x, yw)] = _trajectory_start(t, y, e, tw[0])
+            fit = _trajectory_fit(t, y, e)
+            _KNOWN_STARTS[_lane_key(x, yw)] = _trajectory_start(t, y, e, tw[0], fit)
+            rmses.append(fit.rmse_rad)
         except (ValueError, IndexError):
-            pass
+            rmses.append(math.nan)
         t0s.append(tw[0])
         ns.append(len(tw))
         dts.append(float(np.median(np.diff(t))))
@@ -226,7 +235,32 @@ def decay_windows(data) -> DecayWindows:
     if max(abs(d - dt) for d in dts) > 1e-6 * dt:
         raise ValueError("the trials are sampled at different rates; fit them separately")
     step = max(steps) if max(steps) > 0 else DEFAULT_STEP_RAD
-    return DecayWindows(pack(groups), trials, np.asarray(t0s), np.asarray(ns), dt, step)
+    return DecayWindows(pack(groups), trials, np.asarray(t0s), np.asarray(ns), dt, step,
+                        np.asarray(rmses))
+
+
+def _check_prior_support(windows: DecayWindows, prior: Prior) -> None:
+    """ValueError naming the trial when a recording lies outside what the prior allows: an
+    angle beyond the prior's range of β, or a fit closer than the smallest noise σ (a
+    recording without noise has no posterior that a sampler could explore)."""
+    from ._posterior import LOG_SIGMA_BOUNDS
+
+    lo, hi = prior.lower[2], prior.upper[2]
+    sigma_min = math.exp(LOG_SIGMA_BOUNDS[0])
+    y, on = np.asarray(windows.data.y), np.asarray(windows.data.w) > 0
+    for i, trial in enumerate(windows.trials):
+        angles = y[i, on[i]]
+        if angles.min() <= lo or angles.max() >= hi:
+            reach = angles.max() if angles.max() >= hi else angles.min()
+            raise ValueError(f"trial '{trial}': the angle reaches {reach:.6g} rad, outside the "
+                             f"({lo:.4g}, {hi:.4g}) rad (one encoder turn) that the posterior's "
+                             "prior allows for β")
+        rmse = windows.fit_rmse_rad[i] if windows.fit_rmse_rad is not None else math.nan
+        if rmse < sigma_min:
+            raise ValueError(f"trial '{trial}': the decay model fits the recording to "
+                             f"{rmse:.3g} rad RMS, below the smallest noise σ = {sigma_min:g} "
+                             "rad the posterior allows: a recording without noise has no "
+                             "posterior to sample")
 
 
 # --------------------------------------------------------------------------------------
@@ -392,6 +426,7 @@ def fit_decay_mcmc(
     step = windows.encoder_step_rad if encoder_step_rad is None else encoder_step_rad
     # Rounded, so that records at one nominal rate share one prior (and one compilation).
     prior = decay_prior(float(f"{1.0 / windows.dt_s:.9g}"), step, noise_steps)
+    _check_prior_support(windows, prior)
     mcmc = fit_mcmc(windows.data, DECAY_SPEC, key=key, prior=prior, n_walkers=n_walkers,
                     max_steps=max_steps, min_steps=min_steps, check_every=check_every,
                     thin=thin, muscles=windows.trials, **kwargs)

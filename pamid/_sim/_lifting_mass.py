@@ -61,13 +61,16 @@ needed, while the adaptive solver, though it takes 5× fewer steps, runs its ste
 lockstep across the vmapped batch and pays for dense output at 5001 points. The system is
 not stiff (ω_n ≈ 14 rad/s, ζ < 1), so the implicit Kvaerno5 only adds cost.
 :func:`simulate_lifting_mass` therefore uses RK4 with ``substeps`` steps per output sample
-(default 1). A muscle that goes slack (force clipped at 0 N, far above the equilibrium)
+(default 1); :func:`lifting_mass_substeps` gives how many a run needs (a light mass on the
+stiff muscle moves at hundreds of Hz, which ``pamid simulate lifting-mass`` follows so).
+A muscle that goes slack (force clipped at 0 N, far above the equilibrium)
 puts a kink in the right-hand side, where every fixed- or adaptive-step method drops to
 first order; the benchmark keeps its runs taut.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import equinox as eqx
@@ -91,6 +94,7 @@ __all__ = [
     "lifting_mass_equilibrium",
     "lifting_mass_force",
     "lifting_mass_stiffness",
+    "lifting_mass_substeps",
     "loop_range_pct",
     "settling",
     "simulate_lifting_mass",
@@ -300,6 +304,45 @@ def simulate_lifting_mass(
     s, v, f, c = _simulate(model, jnp.asarray(x0_m, float), jnp.asarray(v0_m_per_s, float), n,
                            dt, int(substeps))
     return LiftingMassRun(dt * jnp.arange(n), s, v, f, c)
+
+
+#: RK4 step, in radians of the fastest motion (|λ|·h), that :func:`lifting_mass_substeps`
+#: keeps to: 25 steps per period of the natural frequency, a phase error near 1e-4 a period.
+RK4_STEP_RAD = 0.25
+
+
+def lifting_mass_substeps(
+    model: LiftingMass, x0_m: float, v0_m_per_s: float, sample_rate_Hz: float
+) -> tuple[int, float]:
+    """RK4 steps per output sample that resolve the run's fastest motion; one run (NumPy).
+
+    The linearised motion about a shortening s has the rates λ = ω·(ζ ± √(ζ² − 1)),
+    ω = √(k(s)/m) (Sárosi eq. 2.9, 2.10); the largest |λ| over the shortenings the run can
+    reach (the static solution ± the amplitude that x0 and v0 give, within −10 … 50 %
+    contraction) sets the step: |λ|·h ≤ :data:`RK4_STEP_RAD`. A light mass on a stiff muscle
+    oscillates at hundreds of Hz, which one step per 1 kHz sample would not follow (RK4 is
+    unstable beyond |λ|·h ≈ 2.8, and gives nonsense well before).
+
+    Returns (substeps ≥ 1, the largest |λ| in 1/s); substeps is ``math.inf`` beyond 1e15.
+    """
+    import numpy as np
+
+    l0 = float(model.l0_m)
+    m = float(model.mass_kg)
+    zeta = float(model.zeta)
+    eq = float(lifting_mass_equilibrium(model))
+    if not np.isfinite(eq):
+        eq = float(x0_m)
+    k_eq = abs(float(lifting_mass_stiffness(model, eq)))
+    omega_eq = math.sqrt(k_eq / m) if k_eq > 0 else 0.0
+    reach = math.hypot(x0_m - eq, v0_m_per_s / omega_eq if omega_eq > 0 else 0.0)
+    lo, hi = max(eq - reach, -0.1 * l0), min(eq + reach, 0.5 * l0)
+    s = np.linspace(min(lo, x0_m), max(hi, x0_m), 65)
+    k = float(np.max(np.abs(np.asarray(lifting_mass_stiffness(model, s)))))
+    omega = math.sqrt(k / m)
+    fastest = omega * (zeta + math.sqrt(zeta**2 - 1.0) if zeta > 1.0 else 1.0)
+    needed = fastest / (sample_rate_Hz * RK4_STEP_RAD)
+    return (max(1, math.ceil(needed)) if needed < 1e15 else math.inf), fastest
 
 
 def settling(
