@@ -42,7 +42,9 @@ What is measured (see benchmarks/README.md for a recorded run):
    (issue #7).
 6. End to end: ``pamid fit FILE --json`` as a subprocess on an N-muscle CSV against
    ``benchmarks/baseline_curve_fit_script.py`` (pandas + curve_fit), and the one-muscle CLI
-   call with a cold and a warm compilation cache (``PAMID_CACHE_DIR``).
+   call with a cold and a warm compilation cache (``PAMID_CACHE_DIR``). One call each;
+   ``benchmarks/end_to_end.py`` repeats the comparison in rounds (medians, CPU times) and
+   adds the measured AARL file with plots.
 """
 
 from __future__ import annotations

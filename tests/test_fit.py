@@ -157,7 +157,9 @@ def test_batched_fit_equals_loop_of_single_fits(small_bench, solver):
     # a1: its start values, computed in a batch of 3 or of 1, differ by ~1e-14 (summation
     # order), and that changes its path (14 vs 26 steps on muscle 3). Batching itself is
     # exact: see test_batched_solve_is_exact_from_the_same_start.
-    rtol = 5e-8 if solver == "levenberg-marquardt" else 1e-8
+    # Variable projection locates the minimum of S(a3) from function values, which pins it
+    # only to about √ε ≈ 1.5e-8 (relative): up to 2.5e-8 with numpy 2.5 / scipy 1.18.
+    rtol = 5e-8 if solver in ("levenberg-marquardt", "variable-projection") else 1e-8
     for i, group in enumerate(small_bench.groups):
         one = pamid.fit_least_squares(single(group), solver=solver)
         assert_rel(batch.theta[i], one.theta[0], rtol, f"muscle {i} constants")
@@ -187,7 +189,8 @@ def test_batched_solve_is_exact_from_the_same_start(small_bench, solver):
         theta_i, ok_i, steps_i = solve(
             SAROSI, subset(data, [i]), solver=solver, theta0=start[i : i + 1]
         )
-        assert_rel(theta[i], theta_i[0], 1e-12 if exact else 1e-8, f"muscle {i}")
+        # (√ε ≈ 1.5e-8: up to 2.5e-8 observed with numpy 2.5 / scipy 1.18)
+        assert_rel(theta[i], theta_i[0], 1e-12 if exact else 5e-8, f"muscle {i}")
         assert ok[i] == ok_i[0]
         if exact:
             assert steps[i] == steps_i[0]
@@ -268,8 +271,10 @@ def test_pathological_muscle_neither_crashes_the_batch_nor_looks_good(small_benc
     for lane, group in ((0, good0), (2, good1)):
         one = pamid.fit_least_squares(single(group), solver=solver)
         assert result.converged[lane]
-        assert_rel(result.theta[lane], one.theta[0], 1e-8, f"lane {lane}")
-        assert_rel(result.ci95[lane], one.ci95[0], 1e-8, f"lane {lane} intervals")
+        # variable projection: a minimum from function values, to about √ε (see above)
+        tol = 5e-8 if solver == "variable-projection" else 1e-8
+        assert_rel(result.theta[lane], one.theta[0], tol, f"lane {lane}")
+        assert_rel(result.ci95[lane], one.ci95[0], tol, f"lane {lane} intervals")
 
     # The pathological one is flagged whatever the solver says: a solver may meet its
     # tolerance in the flat valley, but a rank-deficient Jacobian is never "converged".

@@ -1,6 +1,7 @@
 """``pamid fit DATA --method mcmc``: posterior sampling from the command line.
 
-:func:`add_mcmc_arguments` adds the options to the ``fit`` parser; :func:`run_mcmc_fit`
+:func:`~pamid._commands.mcmc_options.add_mcmc_arguments` adds the options to the
+``fit`` parser (a light module: building the parser imports no sampler); :func:`run_mcmc_fit`
 runs the sampler on a loaded bench file and returns the JSON payload (the shape of the
 least-squares fit, each constant also with ``hdi95``, ``r_hat``, ``ess_bulk``) and the exit
 code (0, or 1 when a muscle did not converge). Progress and warnings go to stderr, the
@@ -11,36 +12,12 @@ of the constants and the posterior predictive against the data.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
 from pathlib import Path
 
-from .._sampling._mcmc import SAMPLERS
-from .._sampling._posterior import DEFAULT_NU, LIKELIHOODS
-
-
-def add_mcmc_arguments(parser: argparse.ArgumentParser, *, with_method: bool = True) -> None:
-    """Add ``--method`` (unless ``with_method=False``) and the MCMC options to ``parser``."""
-    if with_method:
-        parser.add_argument("--method", default="ls", choices=["ls", "mcmc"],
-                            help="ls: least squares (default); mcmc: posterior sampling of "
-                                 "the constants and the noise (ensemble MCMC)")
-    g = parser.add_argument_group("MCMC (--method mcmc)")
-    g.add_argument("--walkers", type=int, default=32,
-                   help="walkers per muscle (even, ≥ 2 × (constants + 1); default 32)")
-    g.add_argument("--max-steps", type=int, default=20_000, dest="max_steps",
-                   help="step budget; sampling stops earlier once the kept chain spans 50 "
-                        "autocorrelation times (default 20000)")
-    g.add_argument("--thin", type=int, default=10, help="keep every N-th step (default 10)")
-    g.add_argument("--likelihood", default="normal", choices=list(LIKELIHOODS),
-                   help="noise model: normal, or student-t for data with outliers")
-    g.add_argument("--nu", type=float, default=DEFAULT_NU,
-                   help=f"degrees of freedom of the Student-t likelihood (default {DEFAULT_NU:g})")
-    g.add_argument("--sampler", default="auto", choices=list(SAMPLERS),
-                   help="stacked: all muscles in one JAX call; emcee: one emcee sampler per "
-                        "muscle; auto: the faster (stacked)")
+from .mcmc_options import add_mcmc_arguments  # noqa: F401 (its home before)
 
 
 def _stage(message: str, quiet: bool) -> None:

@@ -10,7 +10,7 @@ import pandas as pd
 
 from .._data._bench import BenchData
 from . import _intervals
-from ._batch import FitData, pack
+from ._batch import FitData, pack_rows
 from ._least_squares import solve, statistics
 from ._spec import ModelSpec, get_model
 
@@ -59,28 +59,33 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """The JSON shape of ``pamid fit --json``."""
+        # Whole arrays to Python lists at once (10,000 muscles: element by element took most
+        # of a second).
+        theta, se, ci = _json_values(self.theta), _json_values(self.se), _json_values(self.ci95)
+        optional = [
+            (key, _json_values(arr))
+            for key, arr in (("ci95_profile", self.ci95_profile),
+                             ("ci95_bootstrap", self.ci95_bootstrap))
+            if arr is not None
+        ]
+        units = [self.param_units[name] for name in self.param_names]
+        rmse, r = _json_values(self.rmse_N), _json_values(self.r)
+        n, converged = self.n.tolist(), np.asarray(self.converged, dtype=bool).tolist()
         muscles = []
         for i, muscle in enumerate(self.muscles):
             params = {}
             for j, name in enumerate(self.param_names):
-                entry = {
-                    "value": _num(self.theta[i, j]),
-                    "ci95": _pair(self.ci95[i, j]),
-                    "se": _num(self.se[i, j]),
-                    "unit": self.param_units[name],
-                }
-                if self.ci95_profile is not None:
-                    entry["ci95_profile"] = _pair(self.ci95_profile[i, j])
-                if self.ci95_bootstrap is not None:
-                    entry["ci95_bootstrap"] = _pair(self.ci95_bootstrap[i, j])
+                entry = {"value": theta[i][j], "ci95": ci[i][j], "se": se[i][j], "unit": units[j]}
+                for key, values in optional:
+                    entry[key] = values[i][j]
                 params[name] = entry
             muscles.append(
                 {
                     "muscle": muscle,
-                    "n": int(self.n[i]),
-                    "rmse_N": _num(self.rmse_N[i]),
-                    "r": _num(self.r[i]),
-                    "converged": bool(self.converged[i]),
+                    "n": int(n[i]),
+                    "rmse_N": rmse[i],
+                    "r": r[i],
+                    "converged": converged[i],
                     "params": params,
                 }
             )
@@ -94,6 +99,13 @@ class FitResult:
         }
 
 
+def _json_values(a) -> list:
+    """An array as (nested) lists of floats, NaN and ±inf as None: :func:`_num` for every
+    element at once."""
+    a = np.asarray(a, dtype=np.float64)
+    return np.where(np.isfinite(a), a, None).tolist()
+
+
 def _num(x):
     """A float for JSON: NaN and ±inf (not valid JSON) become null."""
     return float(x) if np.isfinite(x) else None
@@ -103,31 +115,23 @@ def _pair(v):
     return [_num(x) for x in v]
 
 
-def _curve_ids(frame: pd.DataFrame) -> np.ndarray:
-    """Curve (sweep) of every row: a new curve starts where the cycle, the direction, or the
-    pressure level changes in file order. A pressure level is the pressure rounded to 2% of
-    the file's pressure range, so that sensor noise on a held pressure is one level."""
-    keys = []
-    p = frame["pressure_kPa"].to_numpy()
-    step = max(0.02 * (np.ptp(p) if p.size else 0.0), 1e-9)
-    keys.append(np.round(p / step))
-    for col in ("cycle", "direction"):
-        if col in frame:
-            keys.append(frame[col].to_numpy())
-    stacked = np.stack(keys, axis=1)
-    change = np.ones(len(frame), dtype=bool)
-    change[1:] = np.any(stacked[1:] != stacked[:-1], axis=1)
-    return np.cumsum(change) - 1
+def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
+                      curves: bool = True) -> FitData:
+    """Pack a loaded bench file into a batch, one lane per muscle, with the model's inputs.
 
-
-def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi") -> FitData:
-    """Pack a loaded bench file into a batch, one lane per muscle, with the model's inputs."""
+    Straight from the frame's columns (no per-muscle frames): muscle codes by one
+    ``pd.factorize``, then :func:`~pamid._fit._batch.pack_rows`. The curve of every sample
+    (the bootstrap's resampling unit) is the file's one curve definition,
+    ``bench.curves`` (:func:`pamid._data._curves.find_curves`); ``curves=False`` puts
+    every sample of a muscle in curve 0, for fits that resample nothing.
+    """
     spec = get_model(model, bench.frame) if isinstance(model, str) else model
-    groups, curves = [], []
-    for _, f in bench.groups():
-        groups.append((spec.x_from_frame(f, bench.path), f["force_N"].to_numpy()))
-        curves.append(_curve_ids(f))
-    return pack(groups, curves)
+    frame = bench.frame
+    codes = pd.factorize(frame["muscle"], sort=False)[0]
+    x = spec.x_from_frame(frame, bench.path)
+    y = frame["force_N"].to_numpy(dtype=np.float64)
+    curve = bench.curves.curve if curves else np.zeros(len(frame), dtype=np.int64)
+    return pack_rows(codes, x, y, curve, n_muscles=len(bench.muscles))
 
 
 def fit_least_squares(
@@ -165,7 +169,7 @@ def fit_least_squares(
         raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")
     if isinstance(data, BenchData):
         names = tuple(m if data.has_muscle_column else None for m in data.muscles)
-        data = bench_to_fit_data(data, spec)
+        data = bench_to_fit_data(data, spec, curves="bootstrap" in intervals)
     else:
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
 
@@ -178,7 +182,8 @@ def fit_least_squares(
 
     ci_profile = profile_ok = None
     if "profile" in intervals:
-        plo, phi, profile_ok = _intervals.profile(spec, data, theta, se, s2, sse, dof, level)
+        plo, phi, profile_ok = _intervals.profile(spec, data, theta, se, s2, sse, dof, level,
+                                                  jtj_inv=jtj_inv)
         ci_profile = np.stack([plo, phi], axis=-1)
     ci_boot = boot_ok = None
     if "bootstrap" in intervals:

@@ -47,42 +47,113 @@ def pack(groups, curves=None) -> FitData:
     """Pack a list of muscles, each ``(x_tuple, y)`` of 1-D arrays, into a padded batch.
 
     ``curves``, if given, is a list of 1-D integer arrays (curve id of each sample); by
-    default every sample of a muscle is in curve 0.
+    default every sample of a muscle is in curve 0. The groups are concatenated and packed
+    by :func:`pack_rows`.
     """
     if not groups:
         raise ValueError("no muscles to fit")
     n_x = len(groups[0][0])
-    n_max = max(len(y) for _, y in groups)
-    m = len(groups)
-    xs = np.zeros((n_x, m, n_max))
-    y = np.zeros((m, n_max))
-    w = np.zeros((m, n_max))
-    curve = np.full((m, n_max), -1, dtype=np.int64)
-    for i, (x_i, y_i) in enumerate(groups):
-        n = len(y_i)
-        for j in range(n_x):
-            xs[j, i, :n] = x_i[j]
-            # Padding repeats the first sample so that the model stays finite there.
-            xs[j, i, n:] = x_i[j][0] if n else 0.0
-        y[i, :n] = y_i
-        w[i, :n] = 1.0
-        curve[i, :n] = 0 if curves is None else _dense_ids(curves[i])
+    sizes = np.array([len(y) for _, y in groups], dtype=np.int64)
+    codes = np.repeat(np.arange(len(groups)), sizes)
+    xs = tuple(_concat([x[j] for x, _ in groups]) for j in range(n_x))
+    y = _concat([y for _, y in groups])
+    curve = None if curves is None else np.concatenate([np.ravel(c) for c in curves])
+    return pack_rows(codes, xs, y, curve, n_muscles=len(groups))
+
+
+def _concat(arrays) -> np.ndarray:
+    return np.concatenate([np.asarray(a, dtype=np.float64).ravel() for a in arrays])
+
+
+def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
+    """Pack samples given row by row into a padded batch, one lane per muscle.
+
+    Args:
+        codes: muscle of every row, integers 0 … M − 1 (``pd.factorize`` of a muscle
+            column); within a muscle the rows keep their order.
+        x: model inputs, a tuple of 1-D arrays aligned with ``codes``.
+        y: measured output, 1-D, aligned with ``codes``.
+        curve: optional curve id of every row; ids are made dense within each muscle
+            (0, 1, … in increasing order of id). Default: every row in curve 0.
+        n_muscles: M (default ``codes.max() + 1``); a muscle with no rows is all padding.
+
+    Padding repeats the muscle's first sample in ``x`` (so that the model stays finite
+    there), has y = 0, weight 0 and curve −1. No loop over muscles: positions within a
+    muscle by a cumulative count, then one scatter per array.
+    """
+    codes = np.asarray(codes, dtype=np.int64)
+    n = len(codes)
+    m = int(codes.max()) + 1 if n_muscles is None else int(n_muscles)
+    if m == 0:
+        raise ValueError("no muscles to fit")
+    counts = np.bincount(codes, minlength=m)
+    starts = np.cumsum(counts) - counts
+    n_max = int(counts.max()) if n else 0
+    if np.all(codes[1:] >= codes[:-1]):
+        order = None  # each muscle one block, in order: no sort
+        pos = np.arange(n) - starts[codes]
+        first = starts
+    else:
+        order = np.argsort(codes, kind="stable")
+        pos = np.empty(n, dtype=np.int64)
+        pos[order] = np.arange(n) - starts[codes[order]]
+        first = order[np.minimum(starts, n - 1)]
+    empty = counts == 0
+    first = np.where(empty, 0, first)
+
+    def scatter(values, fill, dtype=np.float64):
+        out = np.empty((m, n_max), dtype=dtype)
+        out[...] = fill
+        out[codes, pos] = values
+        return out
+
+    xs = []
+    for a in x:
+        a = np.asarray(a, dtype=np.float64)
+        pad = np.where(empty, 0.0, a[first]) if n else np.zeros(m)
+        xs.append(scatter(a, pad[:, None]))
+    curve_ids = 0 if curve is None else _dense_within(codes, np.asarray(curve), order)
     return FitData(
         x=tuple(jnp.asarray(a) for a in xs),
-        y=jnp.asarray(y),
-        w=jnp.asarray(w),
-        curve=jnp.asarray(curve),
+        y=jnp.asarray(scatter(np.asarray(y, dtype=np.float64), 0.0)),
+        w=jnp.asarray(scatter(1.0, 0.0)),
+        curve=jnp.asarray(scatter(curve_ids, -1, dtype=np.int64)),
     )
 
 
-def _dense_ids(ids) -> np.ndarray:
-    _, inverse = np.unique(np.asarray(ids), return_inverse=True)
-    return inverse.astype(np.int64)
+def _dense_within(codes, ids, order) -> np.ndarray:
+    """Curve ids made dense within each muscle: the rank of each id among the distinct ids
+    of its muscle (what ``np.unique(ids_of_muscle, return_inverse=True)`` gives)."""
+    n = len(codes)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    ids = ids.astype(np.int64, copy=False) if ids.dtype.kind in "iub" else ids
+    if order is None and ids.dtype.kind == "i":
+        # Already dense (0 at each muscle's first row, then steps of 0 or 1, as curves
+        # found in file order are): nothing to do.
+        new_muscle = np.ones(n, dtype=bool)
+        new_muscle[1:] = codes[1:] != codes[:-1]
+        step = np.diff(ids, prepend=0)
+        if np.all(np.where(new_muscle, ids == 0, (step == 0) | (step == 1))):
+            return ids
+    o = np.lexsort((ids, codes))
+    c_s, i_s = codes[o], ids[o]
+    new_muscle = np.ones(n, dtype=bool)
+    new_muscle[1:] = c_s[1:] != c_s[:-1]
+    new_id = new_muscle.copy()
+    new_id[1:] |= i_s[1:] != i_s[:-1]
+    rank = np.cumsum(new_id) - 1
+    first_rank = rank[np.flatnonzero(new_muscle)]
+    dense = np.empty(n, dtype=np.int64)
+    dense[o] = rank - first_rank[np.cumsum(new_muscle) - 1]
+    return dense
 
 
 #: Lanes (muscles, replicates) per compiled call. Bounds memory: the variable-projection
-#: scan and the profile intervals need ~0.4 and ~0.9 MB of temporaries per lane of 300
-#: samples, so 10,000 muscles in one call needed 3.6 and 8.7 GB.
+#: scan and the earlier profile intervals (an optimistix solve per interval end) needed
+#: ~0.4 and ~0.9 MB of temporaries per lane of 300 samples, so 10,000 muscles in one call
+#: needed 3.6 and 8.7 GB. (The profile intervals now take 12 ends per muscle as lanes, in
+#: chunks of as many muscles as make ``CPU_CHUNK_LANES`` ends on the CPU.)
 CHUNK_LANES = 2048
 
 

@@ -61,9 +61,9 @@ from .._fit._api import FitResult, bench_to_fit_data, fit_least_squares
 from .._fit._batch import FitData
 from .._fit._spec import ModelSpec, get_model
 from . import _posterior
+from ._options import SAMPLERS
 from ._posterior import DEFAULT_NU, LIKELIHOODS, Prior, default_prior
 
-SAMPLERS = ("auto", "stacked", "emcee")
 AUTO_SAMPLER = "stacked"  # measured faster at M = 1 … 1000 (benchmarks/mcmc_batch.py)
 STRETCH_A = 2.0
 DE_FRACTION = 0.8  # see the module docstring

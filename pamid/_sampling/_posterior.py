@@ -34,11 +34,10 @@ import numpy as np
 from jax.scipy.special import gammaln
 
 from .._fit._spec import ModelSpec
+from ._options import DEFAULT_NU, LIKELIHOODS
 
-LIKELIHOODS = ("normal", "student-t")
 LOG_SIGMA_BOUNDS = (math.log(1e-6), math.log(1e6))  # σ in N
 NOISE_SCALE_N = 10.0
-DEFAULT_NU = 4.0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,0 +1,277 @@
+"""The fitting path of ``pamid fit`` without per-muscle work: the vectorised packer, the
+curve ids, the profile intervals by Newton's method, and what the command imports.
+
+References: the per-muscle packing and curve ids as they were written before (a loop over
+muscles, kept here as plain NumPy), and profile-t interval ends found by SciPy (refits with
+``least_squares`` and a root search with ``brentq``).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import scipy.optimize
+import scipy.stats
+
+import pamid
+from pamid._data._curves import find_curves
+from pamid._fit._api import bench_to_fit_data
+from pamid._fit._batch import pack_rows
+
+# ----------------------------------------------------------------------------------------
+# Reference: the per-muscle packer and curve ids (one muscle at a time)
+# ----------------------------------------------------------------------------------------
+
+
+def pack_loop(groups, curves=None):
+    """Padded arrays muscle by muscle: padding repeats the first sample in x, y = 0, w = 0,
+    curve −1; curve ids made dense per muscle with np.unique."""
+    n_x, m = len(groups[0][0]), len(groups)
+    n_max = max(len(y) for _, y in groups)
+    xs = np.zeros((n_x, m, n_max))
+    y = np.zeros((m, n_max))
+    w = np.zeros((m, n_max))
+    curve = np.full((m, n_max), -1, dtype=np.int64)
+    for i, (x_i, y_i) in enumerate(groups):
+        n = len(y_i)
+        for j in range(n_x):
+            xs[j, i, :n] = x_i[j]
+            xs[j, i, n:] = x_i[j][0] if n else 0.0
+        y[i, :n] = y_i
+        w[i, :n] = 1.0
+        if curves is None:
+            curve[i, :n] = 0
+        else:
+            curve[i, :n] = np.unique(np.asarray(curves[i]), return_inverse=True)[1]
+    return xs, y, w, curve
+
+
+def assert_same_bits(data, ref):
+    xs, y, w, curve = ref
+    for a, b in zip((*data.x, data.y, data.w, data.curve), (*xs, y, w, curve), strict=True):
+        a = np.asarray(a)
+        assert a.dtype == b.dtype and a.shape == b.shape
+        assert np.array_equal(a, b)
+
+
+def ragged_groups(rng, sizes):
+    groups, curves = [], []
+    for n in sizes:
+        x = (rng.uniform(0, 6, n), rng.uniform(0, 25, n))
+        groups.append((x, rng.normal(300, 50, n)))
+        curves.append(rng.integers(3, 40, n) * 7)  # sparse, unsorted ids
+    return groups, curves
+
+
+def test_pack_equals_the_per_muscle_loop_on_ragged_muscles():
+    rng = np.random.default_rng(11)
+    groups, curves = ragged_groups(rng, [5, 1, 17, 0, 9, 17, 2])
+    assert_same_bits(pamid.pack_muscles(groups, curves), pack_loop(groups, curves))
+    assert_same_bits(pamid.pack_muscles(groups), pack_loop(groups))
+
+
+def test_pack_rows_with_interleaved_muscles_equals_the_loop():
+    """Rows of the muscles interleaved in the table (not one block each): the packer keeps
+    each muscle's rows in table order."""
+    rng = np.random.default_rng(5)
+    codes = rng.integers(0, 4, 60)
+    p, k, y = rng.uniform(0, 6, 60), rng.uniform(0, 25, 60), rng.normal(0, 9, 60)
+    curve = rng.integers(0, 5, 60)
+    groups = [((p[codes == i], k[codes == i]), y[codes == i]) for i in range(4)]
+    ref = pack_loop(groups, [curve[codes == i] for i in range(4)])
+    assert_same_bits(pack_rows(codes, (p, k), y, curve), ref)
+
+
+def test_bench_to_fit_data_equals_the_per_muscle_loop(tmp_path):
+    """A bench file with ragged muscles whose rows are interleaved, cycles and directions:
+    the same arrays, bit for bit, as packing each muscle's frame on its own."""
+    rng = np.random.default_rng(3)
+    rows = []
+    for m, n in (("B", 23), ("A", 7), ("C", 31)):
+        p = np.repeat([100.0, 300.0, 500.0], -(-n // 3))[:n] + rng.normal(0, 0.5, n)
+        rows.append(pd.DataFrame({
+            "muscle": m,
+            "pressure_kPa": p,
+            "contraction_pct": rng.uniform(0, 20, n),
+            "force_N": rng.uniform(10, 900, n),
+            "direction": rng.choice([-1, 1], n),
+            "cycle": np.sort(rng.integers(0, 3, n)),
+        }))
+    frame = pd.concat(rows, ignore_index=True).sample(frac=1.0, random_state=1)
+    path = tmp_path / "ragged.csv"
+    frame.to_csv(path, index=False)
+    bench = pamid.load_bench(path)
+    assert bench.muscles == tuple(pd.unique(frame["muscle"]))
+    assert not frame["muscle"].is_monotonic_increasing  # interleaved, not sorted
+    groups, curves = [], []
+    for m in bench.muscles:
+        f = bench.for_muscle(m)
+        groups.append(((f["pressure_kPa"].to_numpy() / 100.0, f["contraction_pct"].to_numpy()),
+                       f["force_N"].to_numpy()))
+        curves.append(find_curves(f).curve)  # the one curve definition, muscle by muscle
+    assert_same_bits(bench_to_fit_data(bench), pack_loop(groups, curves))
+
+
+def test_packed_curves_are_the_files_curves_and_restart_in_every_muscle(tmp_path):
+    frame = pd.DataFrame({
+        "muscle": ["A"] * 4 + ["B"] * 4,
+        "pressure_kPa": [100.0, 100.0, 300.0, 300.0, 100.0, 100.0, 500.0, 500.0],
+        "contraction_pct": [0.0, 5.0, 0.0, 5.0, 0.0, 5.0, 0.0, 5.0],
+        "force_N": [500.0, 300.0, 900.0, 700.0, 500.0, 300.0, 900.0, 700.0],
+    })
+    path = tmp_path / "two.csv"
+    frame.to_csv(path, index=False)
+    bench = pamid.load_bench(path)
+    data = bench_to_fit_data(bench)
+    np.testing.assert_array_equal(np.asarray(data.curve), [[0, 0, 1, 1], [0, 0, 1, 1]])
+    np.testing.assert_array_equal(bench.curves.curve, [0, 0, 1, 1, 0, 0, 1, 1])
+    assert (np.asarray(bench_to_fit_data(bench, curves=False).curve) == 0).all()
+
+
+# ----------------------------------------------------------------------------------------
+# Profile intervals against SciPy
+# ----------------------------------------------------------------------------------------
+
+
+def _sarosi(theta, p, k):
+    a1, a2, a3, a4, a5, a6 = theta
+    return (a1 * p + a2) * np.exp(a3 * k) + a4 * k * p + a5 * p + a6
+
+
+def scipy_profile_end(p, k, y, theta_hat, sse_min, t2s2, j, side, half):
+    """The end of the profile-t interval of constant j on one side, by SciPy: S(v) is the
+    least-squares refit with θ_j = v (``least_squares``, lm, analytic Jacobian), and the end
+    is the root of S(v) − S_min − t²·s² (``brentq``, bracketed by stepping out)."""
+    free = [i for i in range(6) if i != j]
+
+    def sse(v):
+        def res(q):
+            th = np.empty(6)
+            th[free], th[j] = q, v
+            return _sarosi(th, p, k) - y
+
+        def jac(q):
+            th = np.empty(6)
+            th[free], th[j] = q, v
+            a1, a2, a3 = th[:3]
+            e = np.exp(a3 * k)
+            cols = np.stack([p * e, e, (a1 * p + a2) * k * e, k * p, p, np.ones_like(p)], 1)
+            return cols[:, free]
+
+        sol = scipy.optimize.least_squares(res, theta_hat[free], jac=jac, method="lm",
+                                           xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        return float(np.sum(sol.fun**2)) - sse_min - t2s2
+
+    far = theta_hat[j] + side * half
+    while sse(far) < 0:
+        far = theta_hat[j] + 2 * (far - theta_hat[j])
+    return scipy.optimize.brentq(sse, theta_hat[j], far, xtol=1e-13 * abs(half), rtol=1e-15)
+
+
+@pytest.mark.parametrize("noise_N", [2.0, 40.0])
+def test_profile_ends_equal_scipys_profile(small_bench, split_frame, noise_N):
+    """Every end of every constant of three muscles, at Sárosi's noise and at 20× it (where
+    a3's interval is visibly lopsided): within 1e-6 of the interval's width of SciPy's."""
+    import jax
+
+    protocol = pamid.SarosiProtocol(min_force_N=10.0, noise_sd_N=noise_N)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(4), pamid.Sarosi.from_vector(
+        small_bench.theta), protocol)
+    groups = split_frame(frame)
+    fit = pamid.fit_least_squares(pamid.pack_muscles(groups), intervals=("wald", "profile"))
+    assert np.all(fit.profile_ok)
+    for i, ((p, k), y) in enumerate(groups):
+        s2 = fit.sse[i] / fit.dof[i]
+        t2s2 = scipy.stats.t.ppf(0.975, fit.dof[i]) ** 2 * s2
+        for j in range(6):
+            lo, hi = fit.ci95_profile[i, j]
+            half = fit.ci95[i, j, 1] - fit.theta[i, j]
+            for side, end in ((-1, lo), (1, hi)):
+                ref = scipy_profile_end(p, k, y, fit.theta[i], fit.sse[i], t2s2, j, side, half)
+                assert abs(end - ref) <= 1e-6 * (hi - lo), (i, j, side, end, ref)
+
+
+def test_profile_is_lopsided_where_the_model_is_curved(small_bench, split_frame):
+    """At 40 N of noise the profile interval of a3 differs from the Wald interval by more
+    than the tolerance above: the comparison with SciPy is not one of Wald with Wald."""
+    import jax
+
+    protocol = pamid.SarosiProtocol(min_force_N=10.0, noise_sd_N=40.0)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(4), pamid.Sarosi.from_vector(
+        small_bench.theta), protocol)
+    fit = pamid.fit_least_squares(pamid.pack_muscles(split_frame(frame)),
+                                  intervals=("wald", "profile"))
+    width = fit.ci95[..., 1] - fit.ci95[..., 0]
+    assert np.max(np.abs(fit.ci95_profile - fit.ci95) / width[..., None]) > 1e-3
+
+
+def test_profile_without_the_covariance_starts_in_the_constant_alone(small_bench):
+    """Started at θ̂ ± t·se in each constant alone (no (JᵀJ)⁻¹ given), the iteration reaches
+    the same ends."""
+    from pamid._fit import _intervals
+
+    fit = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    s2 = fit.sse / fit.dof
+    lo, hi, ok = _intervals.profile(fit.spec, small_bench.data, fit.theta, fit.se, s2, fit.sse,
+                                    fit.dof)
+    assert np.all(ok)
+    width = fit.ci95_profile[..., 1] - fit.ci95_profile[..., 0]
+    np.testing.assert_array_less(np.abs(lo - fit.ci95_profile[..., 0]), 1e-6 * width)
+    np.testing.assert_array_less(np.abs(hi - fit.ci95_profile[..., 1]), 1e-6 * width)
+
+
+# ----------------------------------------------------------------------------------------
+# What the command imports
+# ----------------------------------------------------------------------------------------
+
+
+def test_fit_help_does_not_import_the_sampler():
+    code = (
+        "import sys\n"
+        "from pamid._cli import main\n"
+        "try:\n"
+        "    main(['fit', '--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = [m for m in ('pamid._commands.mcmc', 'pamid._sampling._mcmc', 'arviz', "
+        "'emcee', 'matplotlib') if m in sys.modules]\n"
+        "print('HEAVY', heavy)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "--walkers" in out.stdout  # the MCMC options are still offered
+    assert "HEAVY []" in out.stdout, out.stdout[-500:]
+
+
+def test_to_dict_writes_every_number_as_the_element_wise_conversion(small_bench):
+    """The JSON document made from whole arrays at once holds, entry by entry, what
+    converting each element did: the same floats, and None for NaN and ±inf."""
+    import dataclasses
+
+    from pamid._fit._api import _num, _pair
+
+    fit = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
+    se = fit.se.copy()
+    se[1, 2], se[2, 0] = np.nan, np.inf
+    prof = fit.ci95_profile.copy()
+    prof[0, 3, 1] = np.nan
+    fit = dataclasses.replace(fit, se=se, ci95_profile=prof)
+    doc = fit.to_dict()
+    assert doc["muscles"][1]["params"]["a3"]["se"] is None
+    assert doc["muscles"][0]["params"]["a4"]["ci95_profile"] == [float(prof[0, 3, 0]), None]
+    for i, muscle in enumerate(doc["muscles"]):
+        assert muscle["n"] == int(fit.n[i]) and type(muscle["n"]) is int
+        assert muscle["rmse_N"] == _num(fit.rmse_N[i]) and muscle["r"] == _num(fit.r[i])
+        assert muscle["converged"] is bool(fit.converged[i])
+        for j, name in enumerate(fit.param_names):
+            entry = muscle["params"][name]
+            assert entry["value"] == _num(fit.theta[i, j])
+            assert entry["se"] == _num(fit.se[i, j])
+            assert entry["ci95"] == _pair(fit.ci95[i, j])
+            assert entry["ci95_profile"] == _pair(fit.ci95_profile[i, j])
+            assert all(type(v) in (float, type(None)) for v in entry["ci95"] + [entry["se"]])
