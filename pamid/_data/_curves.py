@@ -266,6 +266,9 @@ def _noise(u: np.ndarray, blocks: _Blocks, exact: np.ndarray,
     _, _, d2, valid2 = _differences(u, blocks)
     valid2 = valid2 & ~blocks.per_block(exact)
     sigma = 1.4826 * blocks.median(np.abs(d2), valid2) / np.sqrt(6.0)
+    # Fewer than 5 second differences say nothing about noise (a table of a few rows): the
+    # values are taken as they are written.
+    sigma = np.where(blocks.count(valid2) >= 5, sigma, 0.0)
     if steady is not None:
         use = valid2 & steady
         enough = blocks.count(use) >= 5
