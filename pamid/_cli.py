@@ -2,9 +2,13 @@
 ``pamid damping`` and ``pamid check-decays``.
 
 Bad input ends with a one-line message that names the file, column and row, and exit code 2;
-no traceback. ``--json`` prints exactly one JSON object on stdout; warnings and progress go
-to stderr. Compiled code is cached on disk (``PAMID_CACHE_DIR``, default
-``~/.cache/pamid/jax``), so the second call of a command skips compilation.
+no traceback. Exit codes: 0 done; 1 a fit that did not converge; 2 bad input or a bad output
+place; 3 an internal failure — out of memory, or a defect — told in one line
+(``PAMID_DEBUG=1`` shows the traceback instead); 130 interrupted; 141 stdout closed early
+(``pamid fit --json | head``), silently (:mod:`pamid._commands.failure`). ``--json``
+prints exactly one JSON object on stdout; warnings and progress go to stderr. Compiled
+code is cached on disk (``PAMID_CACHE_DIR``, default ``~/.cache/pamid/jax``), so the second
+call of a command skips compilation.
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ def _format_table(result, published=None) -> str:
 
 def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
     from . import _plot
+    from ._data._curves import find_curves
 
     written = []
     for i, muscle in enumerate(bench.muscles[:max_plots]):
@@ -93,9 +98,11 @@ def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
         name = _safe(muscle) if bench.has_muscle_column else "muscle"
         label = muscle if bench.has_muscle_column else Path(bench.path).name
         title = f"{result.spec.source} fit — {label}"
-        _plot.plot_fit(frame, result.spec, result.theta[i], out / f"fit_{name}.png", title)
+        curves = find_curves(frame, contraction_column=result.spec.contraction_column)
+        _plot.plot_fit(frame, result.spec, result.theta[i], out / f"fit_{name}.png", title,
+                       curves=curves)
         _plot.plot_residuals(frame, result.spec, result.theta[i], out / f"residuals_{name}.png",
-                             f"Residuals — {title}")
+                             f"Residuals — {title}", curves=curves)
         written += [f"fit_{name}.png", f"residuals_{name}.png"]
     if result.n_muscles > 1:
         _plot.plot_rmse_histogram(result.rmse_N, out / "rmse_histogram.png",
@@ -117,7 +124,9 @@ def _cmd_fit(args) -> int:
 
     quiet = args.json
     t0 = time.perf_counter()
-    bench = load_bench(args.data, l0_mm=args.l0_mm, keep_censored=args.keep_censored)
+    from ._commands._reading import reading_options
+
+    bench = load_bench(args.data, **reading_options(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
     if args.bootstrap and "bootstrap" not in intervals:
         intervals += ("bootstrap",)
@@ -251,18 +260,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
 
-    fit = sub.add_parser("fit", help="fit a static force model to bench data (CSV or Parquet)")
+    fit = sub.add_parser("fit",
+                         help="fit a static force model to bench data (CSV, Parquet or .xlsx)")
     fit.add_argument("data", help="bench file: pressure_kPa|bar|Pa|psi, force_N, contraction_pct "
-                                  "or length_mm (+ l0_mm), optional muscle, direction, …")
+                                  "or length_mm (+ l0_mm), optional muscle, trial, direction, …")
     fit.add_argument("--model", default="sarosi", choices=["sarosi", "cullinan"],
                      help="force model: sarosi (Sárosi eq. 2.1; p in bar, κ in %%) or cullinan "
                           "(Cullinan eq. 3; N, kPa, mm, s; G too when velocity_mm_s is given)")
     fit.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     fit.add_argument("--out", help="folder for plots (PNG) and fit.json")
-    fit.add_argument("--l0-mm", type=float, dest="l0_mm",
-                     help="nominal length in mm when the file gives length_mm without l0_mm")
-    fit.add_argument("--keep-censored", action="store_true",
-                     help="keep rows whose force is exactly 0 (dropped by default)")
     fit.add_argument("--solver", default="gauss-newton",
                      choices=["gauss-newton", "levenberg-marquardt", "variable-projection",
                               "jaxopt-levenberg-marquardt"])
@@ -272,8 +278,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="also bootstrap whole curves with B replicates per muscle")
     fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap and MCMC")
     fit.add_argument("--max-plots", type=int, default=6, help="muscles to plot (default 6)")
-    from ._commands.mcmc import add_mcmc_arguments
+    from ._commands._reading import add_reading_arguments
+    from ._commands.mcmc_options import add_mcmc_arguments
 
+    add_reading_arguments(fit)
     add_mcmc_arguments(fit)
     fit.set_defaults(func=_cmd_fit)
 
@@ -298,24 +306,40 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    from ._commands import failure
     from ._errors import BenchDataError
     from ._fit import _export_cache
 
     exporting = _export_cache.directory()
-    _enable_compilation_cache()
     try:
+        _enable_compilation_cache()
         with warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = _show_warning
-            return args.func(args)
+            code = args.func(args)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        return code
     except BenchDataError as exc:
         print(f"pamid: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except ValueError as exc:  # bad options (a solver name, an output path onto an input)
-        if os.environ.get("PAMID_DEBUG"):
+        if failure.debugging():
             raise
         print(f"pamid: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # `pamid fit --json | head -c 1`: the reader has what it wanted
+        failure.silence_stdout()
+        return failure.EXIT_BROKEN_PIPE
+    except KeyboardInterrupt:
+        if failure.debugging():
+            raise
+        print("pamid: interrupted", file=sys.stderr)
+        return failure.EXIT_INTERRUPTED
+    except Exception as exc:  # out of memory, or a defect: one line, never a traceback
+        if failure.debugging():
+            raise
+        print(f"pamid: error: {failure.describe(exc, args.command)}", file=sys.stderr)
+        return failure.EXIT_INTERNAL
     finally:  # a caller in the same process (a test, a notebook) gets its setting back
         _export_cache.enable(exporting)
 

@@ -26,7 +26,7 @@ from pamid._data._virtual_effects import (
 )
 from pamid._diagnose._api import diagnose
 from pamid._diagnose._residual import covariate_dependence, ljung_box, runs_test
-from pamid._diagnose._static import _direction_from_order
+from pamid._data._curves import find_curves
 
 NOISE_N = 2.0 / math.sqrt(5.0)
 SPEEDS = (1.0, 3.0, 2.0, 1.5)  # seconds per point of successive sweeps
@@ -72,14 +72,32 @@ def test_covariate_dependence_finds_a_cubic_and_not_noise():
 
 
 def test_direction_from_time_order():
-    # one pressure: up 0→3, down 3→0; a second pressure: up again
+    # one pressure: up 0→3, down 3→0 (the turning point sampled twice); a second pressure:
+    # up again. Sweep: +1 while the contraction rises, −1 while it falls.
     x = np.array([0, 1, 2, 3, 3, 2, 1, 0, 0, 1, 2], float)
-    seg = np.array([0] * 8 + [1] * 3)
-    d = _direction_from_order(x, seg)
-    np.testing.assert_array_equal(d, [1, 1, 1, 1, -1, -1, -1, -1, 1, 1, 1])
+    p = np.array([100.0] * 8 + [200.0] * 3)
+    c = find_curves(pd.DataFrame({"pressure_kPa": p, "contraction_pct": x}))
+    np.testing.assert_array_equal(c.direction, [1, 1, 1, 1, -1, -1, -1, -1, 1, 1, 1])
+    np.testing.assert_array_equal(c.curve, [0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2])
+    assert not c.direction_recorded.any()
 
 
 # -- each library effect, hidden in the data ---------------------------------------------------
+
+def test_hysteresis_found_in_sweeps_with_noisy_pressure_and_no_direction(tmp_path):
+    """Every real bench logs a noisy pressure: ±1 kPa must not make each sample its own
+    curve (which hid the loop: the derived direction was +1 everywhere)."""
+    proto = pamid.SarosiProtocol(min_force_N=10.0, effects=(InjectedHysteresis(N_at_3_bar=9.0),))
+    frame = pamid.simulate_sarosi_bench(jax.random.key(5), pamid.table_3_1(), proto)
+    rng = np.random.default_rng(0)
+    frame = frame.drop(columns=["direction"])
+    frame["pressure_kPa"] += rng.normal(0.0, 1.0, len(frame))
+    path = tmp_path / "noisy.csv"
+    frame.to_csv(path, index=False)
+    d = diagnose(path)
+    assert d.selected == ["hysteresis"]
+    assert d.rmse_after < 0.3 * d.rmse_before
+
 
 LIBRARY = [
     ("hysteresis", (InjectedHysteresis(N_at_3_bar=9.0),), {}),

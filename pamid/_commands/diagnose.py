@@ -25,7 +25,7 @@ def register(subparsers) -> None:
                     "covariate:<column>), select by BIC and cross-validated error, and report "
                     "the error before and after.",
     )
-    diag.add_argument("data", help="bench file (CSV or Parquet) or decay file (time_s, "
+    diag.add_argument("data", help="bench file (CSV, Parquet or .xlsx) or decay file (time_s, "
                                    "angle_rad|angle_deg, optional trial)")
     diag.add_argument("--model", default="sarosi", choices=["sarosi", "cullinan"],
                       help="static model for bench files (default sarosi)")
@@ -35,6 +35,13 @@ def register(subparsers) -> None:
                       help="cross-validation folds of held-out curves (default 5)")
     diag.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     diag.add_argument("--out", help="folder for diagnosis.json, report.txt and PNG plots")
+    diag.add_argument("--max-rows", type=int, dest="max_rows", metavar="N",
+                      help="diagnose a bench file of more rows on a representative subsample "
+                           "of whole curves of at most N rows (the report and JSON say so: "
+                           "rows_used, rows_total); default: all rows")
+    from ._reading import add_reading_arguments
+
+    add_reading_arguments(diag)
     diag.set_defaults(func=cmd_diagnose)
 
 
@@ -51,8 +58,11 @@ def cmd_diagnose(args) -> int:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     progress(f"diagnosing {args.data}")
+    from ._reading import reading_options
+
     d = diagnose(args.data, model=args.model, inertia_kg_m2=args.inertia_kg_m2,
-                 n_folds=args.folds, progress=progress)
+                 n_folds=args.folds, progress=progress, read_options=reading_options(args),
+                 max_rows=args.max_rows)
     out_json = d.to_dict()
     if args.out:
         out = Path(args.out)

@@ -62,10 +62,21 @@ class Diagnosis:
     residual_after: dict
     unexplained: list[str]
     table: pd.DataFrame = dataclasses.field(repr=False, default=None)
+    rows_used: int | None = None  # samples diagnosed (a subsample with ``max_rows``)
+    rows_total: int | None = None  # samples in the file
+    subsample: str | None = None  # how the subsample was drawn; None for all rows
+
+    def __post_init__(self):
+        if self.rows_used is None:
+            self.rows_used = self.n
+        if self.rows_total is None:
+            self.rows_total = self.n
 
     def to_dict(self) -> dict:
         return json_ready({
             "file": self.path, "kind": self.kind, "model": self.model, "n": self.n,
+            "rows_used": self.rows_used, "rows_total": self.rows_total,
+            "subsample": self.subsample,
             "groups": self.groups,
             "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
             "max_error_before": self.max_error_before, "max_error_after": self.max_error_after,
@@ -116,26 +127,37 @@ def _unexplained(analysis: dict, *, runs_test_applies: bool = True) -> list[str]
 
 
 def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
-             n_folds: int = 5, progress=None) -> Diagnosis:
+             n_folds: int = 5, progress=None, read_options: dict | None = None,
+             max_rows: int | None = None) -> Diagnosis:
     """Diagnose a bench or decay file (a path, a :class:`~pamid.BenchData` or a
     :class:`~pamid.DecayData`).
 
     Decay files are recognised by their columns (``angle_rad`` or ``angle_deg``, with
     ``time_s`` and optionally ``trial``) and diagnosed with the oscillator model; they need
-    ``inertia_kg_m2`` for the friction torque in N·m.
+    ``inertia_kg_m2`` for the friction torque in N·m. ``read_options`` are keyword
+    arguments of :func:`~pamid.load_bench` for a bench file given as a path.
+
+    ``max_rows``: a bench file with more rows is diagnosed on a representative subsample of
+    whole curves (:func:`subsample_curves`); the diagnosis says so (``rows_used``,
+    ``rows_total``, ``subsample``). Decay files are always diagnosed whole.
     """
     from .._data._bench import BenchData, load_bench
     from .._dynamics._decay_data import DecayData, load_decay
 
     if isinstance(data, (str, os.PathLike)):
-        data = load_decay(data) if _is_decay_file(Path(data)) else load_bench(data)
+        if _is_decay_file(Path(data)):
+            data = load_decay(data)
+        else:
+            data = load_bench(data, **(read_options or {}))
     if isinstance(data, DecayData):
         from ._decay import diagnose_decays
 
         return diagnose_decays(data, inertia_kg_m2, n_folds=n_folds, progress=progress)
     if not isinstance(data, BenchData):
         raise TypeError(f"diagnose takes a path, BenchData or DecayData, not {type(data)}")
-    return _diagnose_bench(data, model, n_folds, progress)
+    if max_rows is not None and max_rows < 1:
+        raise ValueError(f"max_rows (--max-rows) must be at least 1, not {max_rows}")
+    return _diagnose_bench(data, model, n_folds, progress, max_rows)
 
 
 def _is_decay_file(path: Path) -> bool:
@@ -149,18 +171,75 @@ def _is_decay_file(path: Path) -> bool:
 
             names = pq.read_schema(path).names
         else:
-            with open(path, "rb") as f:
-                first = f.readline(65536).decode("utf-8-sig", "replace")
-            names = [c.strip().strip('"') for c in first.replace(";", ",").split(",")]
+            from .._data._bench import head_bytes  # a pipe is read once, kept for the loader
+
+            first = head_bytes(path).split(b"\n", 1)[0].decode("utf-8-sig", "replace")
+            names = [c.strip().strip('"')
+                     for c in first.replace(";", ",").replace("\t", ",").split(",")]
     except Exception:
         return False
     return "angle_rad" in names or "angle_deg" in names
 
 
-def _diagnose_bench(bench, model: str, n_folds: int, progress) -> Diagnosis:
+def subsample_curves(bench, max_rows: int):
+    """A representative subsample of ``bench`` of at most ``max_rows`` rows, whole curves kept.
+
+    Curves are those of :func:`pamid._data._curves.find_curves` (``bench.curves``). Every
+    muscle keeps the same share of its curves, evenly spaced along its curves sorted by
+    setting (moving input, direction, held level) and then time: every setting keeps
+    curves, spread over the test. Where whole curves cannot get under ``max_rows`` (a muscle
+    with fewer curves than that takes), every k-th row of each kept curve is kept instead.
+
+    Returns ``(bench, note)``: ``bench`` itself and None when it has ``max_rows`` rows or
+    fewer, else a :class:`~pamid.BenchData` of the kept rows (in file order) and a phrase
+    that says how they were drawn.
+    """
+    frame = bench.frame
+    n = len(frame)
+    if n <= max_rows:
+        return bench, None
+    c = bench.curves
+    muscle = pd.factorize(frame["muscle"], sort=False)[0]
+    uid = muscle * (int(c.curve.max()) + 1) + c.curve  # one id per (muscle, curve)
+    ids, first, sizes = np.unique(uid, return_index=True, return_counts=True)
+    order = np.lexsort((first, c.level[first], c.direction[first], c.moving[first],
+                        muscle[first]))
+    ids, sizes, owner = ids[order], sizes[order], muscle[first][order]
+    rank = np.arange(len(ids)) - np.searchsorted(owner, owner)  # position within its muscle
+    count = np.bincount(owner)[owner]  # curves of its muscle
+    share = max_rows / n
+    for _ in range(30):
+        want = np.maximum(1, np.round(share * count))  # curves kept per muscle (≥ 1)
+        # evenly spaced picks: position j is kept when a multiple of count/want falls in it
+        kept = np.floor((rank + 1) * want / count) > np.floor(rank * want / count)
+        rows = int(np.sum(sizes[kept]))
+        if rows <= max_rows or np.all(want == 1):
+            break
+        share *= 0.98 * max_rows / rows
+    keep = np.isin(uid, ids[kept])
+    note = f"{int(np.sum(kept))} of {len(ids)} whole curves, evenly spread over settings and time"
+    step = -(-rows // max_rows)  # ceil
+    if step > 1:  # one curve per muscle is still too much: thin every curve alike
+        within = pd.Series(uid[keep]).groupby(uid[keep]).cumcount().to_numpy()
+        keep[np.flatnonzero(keep)[within % step != 0]] = False
+        note = (f"one row in {step} of {int(np.sum(kept))} of {len(ids)} curves, evenly "
+                "spread over settings and time")
+    sub = dataclasses.replace(bench, frame=frame[keep].reset_index(drop=True))
+    return sub, note
+
+
+def _diagnose_bench(bench, model: str, n_folds: int, progress,
+                    max_rows: int | None = None) -> Diagnosis:
     from .._fit._spec import get_model
     from ._static import StaticProblem, intervals
 
+    rows_total = len(bench.frame)
+    note = None
+    if max_rows is not None:
+        bench, note = subsample_curves(bench, max_rows)
+        if note is not None and progress is not None:
+            progress(f"diagnosing {len(bench.frame)} of {rows_total} rows: {note} "
+                     "(--max-rows)")
     spec = get_model(model, bench.frame)
     problem = StaticProblem(bench, spec, n_folds=n_folds)
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
@@ -176,8 +255,10 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress) -> Diagnosis:
                           strict=True))}
         for i, (m, e) in enumerate(zip(bench.muscles, intervals(problem, final), strict=True))
     ]
-    return build_diagnosis(bench.path, "bench", spec.name, list(bench.muscles), result,
-                           before, after, constants, table, _unexplained(after))
+    d = build_diagnosis(bench.path, "bench", spec.name, list(bench.muscles), result,
+                        before, after, constants, table, _unexplained(after))
+    d.rows_used, d.rows_total, d.subsample = len(bench.frame), rows_total, note
+    return d
 
 
 def build_diagnosis(path, kind, model, groups, result, before, after, constants, table,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 
 from .._io import save_figure_atomic
 
@@ -24,7 +25,11 @@ def format_report(d) -> str:
     unit = "rad" if d.kind == "decay" else "N"
     what = "trials" if d.kind == "decay" else "muscles"
     lines = [f"pamid diagnose {d.path}",
-             f"model: {d.model}; {d.n_groups} {what}, {d.n} samples", ""]
+             f"model: {d.model}; {d.n_groups} {what}, {d.n} samples"]
+    if getattr(d, "subsample", None):
+        lines.append(f"subsample (--max-rows): {d.rows_used} of the file's {d.rows_total} "
+                     f"rows diagnosed — {d.subsample}")
+    lines.append("")
     b = d.residual_before
     lines.append(f"1. Residual of the baseline: RMSE {d.rmse_before:.4g} {unit}, "
                  f"max {d.max_error_before:.4g} {unit}; runs test p = {_p(b['runs']['p_value'])}, "
@@ -105,14 +110,39 @@ def _range(b: dict) -> str:
     return f"{b['low']:.3g}–{b['high']:.3g}"
 
 
-def plot_residuals(d, path, max_panels: int = 9) -> None:
-    """Residual against each covariate, before (grey) and after (blue) the selected effects."""
-    import matplotlib
+def _strata(d) -> np.ndarray:
+    """A key per row of the diagnosis table whose every-k-th subsample keeps points of
+    every curve (bench files: :func:`pamid._data._curves.find_curves`) of every group."""
+    t = d.table
+    group = pd.factorize(t["group"])[0].astype(np.int64)
+    col = next((c for c in ("contraction_pct", "contraction_mm") if c in t), None)
+    if d.kind != "bench" or "pressure_kPa" not in t or col is None:
+        return group
+    from .._data._curves import find_curves
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    curve = find_curves(t, contraction_column=col).curve
+    return group * (int(curve.max()) + 1) + curve
 
-    table = d.table
+
+def _subject(d) -> str:
+    """Model and what was diagnosed, for titles."""
+    what = "trial" if d.kind == "decay" else "muscle"
+    if d.n_groups == 1:
+        return f"{d.model}, {what} {d.groups[0]}"
+    return f"{d.model}, {d.n_groups} {what}s"
+
+
+def plot_residuals(d, path, max_panels: int = 9):
+    """Residual against each covariate, before (grey) and after (blue) the selected effects.
+
+    Big tables are drawn from every k-th sample of each curve (at most
+    :data:`pamid._plot.MAX_POINTS` points per panel, before and after together). Writes
+    ``path`` atomically and returns the figure.
+    """
+    from matplotlib.figure import Figure
+
+    from .._plot import MAX_POINTS, axis_label, every_kth, shown, wrap
+
     unit = "rad" if d.kind == "decay" else "N"
     covs = list(d.residual_before["covariates"])
     covs.sort(key=lambda c: d.residual_before["covariates"][c]["p_value"] or 1.0)
@@ -120,7 +150,10 @@ def plot_residuals(d, path, max_panels: int = 9) -> None:
     n = len(covs)
     ncol = min(3, n)
     nrow = math.ceil(n / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow), squeeze=False)
+    keep, k = every_kth(_strata(d), MAX_POINTS // 2)
+    table = d.table.iloc[keep]
+    fig = Figure(figsize=(4.2 * ncol, 3.2 * nrow + 0.6), layout="constrained")
+    axes = fig.subplots(nrow, ncol, squeeze=False)
     before, after = f"residual_before_{unit}", f"residual_after_{unit}"
     for ax, c in zip(axes.ravel(), covs, strict=False):
         x = table[c].to_numpy(float)
@@ -133,38 +166,46 @@ def plot_residuals(d, path, max_panels: int = 9) -> None:
         pb = d.residual_before["covariates"][c]["p_value"]
         pa = d.residual_after["covariates"][c]["p_value"]
         ax.set_title(f"{c}: p {_p(pb)} → {_p(pa)}", fontsize=9)
-        ax.set_xlabel(c)
+        ax.set_xlabel(axis_label(c) if d.kind == "bench" else c)
         ax.set_ylabel(f"residual [{unit}]")
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     axes.ravel()[0].legend(fontsize=8, markerscale=3)
     sel = ", ".join(d.selected) if d.selected else "no effect"
-    fig.suptitle(f"Residual before and after ({sel}): RMSE {d.rmse_before:.3g} → "
-                 f"{d.rmse_after:.3g} {unit}", fontsize=11)
-    fig.tight_layout()
+    note = shown(k, len(d.table))
+    fig.suptitle(wrap(f"{_subject(d)}: residual before and after ({sel}), RMSE "
+                      f"{d.rmse_before:.3g} → {d.rmse_after:.3g} {unit}", 45 * ncol)
+                 + (f"\n{note}" if note else ""), fontsize=11)
     save_figure_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def plot_time_order(d, path) -> None:
-    """The residual in time order, before and after: what whiteness tests look at."""
-    import matplotlib
+def plot_time_order(d, path):
+    """The residual in time order, before and after: what whiteness tests look at.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Big tables are drawn from every k-th sample of each curve. Writes ``path`` atomically
+    and returns the figure.
+    """
+    from matplotlib.figure import Figure
+
+    from .._plot import MAX_POINTS, every_kth, shown, wrap
 
     unit = "rad" if d.kind == "decay" else "N"
-    t = d.table
-    fig, axes = plt.subplots(2, 1, figsize=(10, 5), sharex=True, sharey=True)
-    idx = np.arange(len(t))
+    keep, k = every_kth(_strata(d), MAX_POINTS)
+    t = d.table.iloc[keep]
+    fig = Figure(figsize=(10, 5.4), layout="constrained")
+    axes = fig.subplots(2, 1, sharex=True, sharey=True)
     for ax, col, label in ((axes[0], f"residual_before_{unit}", "baseline"),
                            (axes[1], f"residual_after_{unit}", "with " + (
                                ", ".join(d.selected) or "no effect"))):
-        ax.plot(idx, t[col], lw=0.6, color="tab:blue")
+        ax.plot(keep, t[col], lw=0.6, color="tab:blue")
         ax.axhline(0.0, color="k", lw=0.6)
         ax.set_ylabel(f"residual [{unit}]")
         ax.set_title(label, fontsize=10)
-    axes[1].set_xlabel("sample, in time order (groups one after another)")
-    fig.tight_layout()
+    what = "trials" if d.kind == "decay" else "muscles"
+    axes[1].set_xlabel(f"sample, in time order ({what} one after another)")
+    note = shown(k, len(d.table))
+    fig.suptitle(wrap(f"{_subject(d)}: residual in time order", 90)
+                 + (f"\n{note}" if note else ""), fontsize=11)
     save_figure_atomic(fig, path, dpi=110)
-    plt.close(fig)
+    return fig

@@ -30,6 +30,7 @@ the normal equations with Marquardt's diagonal scaling, started from the baselin
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import jax
@@ -37,9 +38,11 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
+from .._fit import _export_cache
 from .._fit._batch import map_lanes, pack
 from .._fit._least_squares import solve
-from .._fit._spec import ModelSpec
+from .._fit._sharding import lane_devices
+from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
 from ._residual import legendre_basis, scaled
 from ._select import SetFit
@@ -66,62 +69,43 @@ class Effect:
     columns: tuple[int, ...]  # feature columns; empty for compliance
 
 
-def derive_covariates(frame: pd.DataFrame, spec: ModelSpec) -> pd.DataFrame:
-    """Covariates of one muscle's rows, which must be in time order.
+def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFrame:
+    """Covariates of one muscle's rows (in file order), from the file's curve structure.
 
-    Adds ``direction`` (from the time order of the contraction when the file has no
-    direction column), ``elapsed_s``, and the rate of contraction ``speed_mm_s`` (or
-    ``speed_pct_s`` without l0) when the file has time.
+    ``curves`` is the :class:`pamid._data._curves.Curves` of these rows. Adds ``direction``
+    (the recorded one, derived where the file has none: +1 where the muscle is driven to
+    contract), and when the file has time ``elapsed_s`` (continuous across trials whose
+    clock restarts), the rate of contraction ``speed_mm_s`` (or ``speed_pct_s`` without
+    l0; zero at a held length) and, where the pressure moves at a held length, the
+    pressure rate ``pressure_rate_kPa_s``; ``repeat``, the trial's (or cycle's) order among
+    the repeats of its setting, when there are repeats.
     """
     out = frame.copy()
-    x = frame[spec.contraction_column].to_numpy(float)
-    p = frame["pressure_kPa"].to_numpy(float)
-    cycle = frame["cycle"].to_numpy() if "cycle" in frame else np.zeros(len(frame))
-    segment = np.concatenate([[0], np.cumsum((np.diff(p) != 0) | (np.diff(cycle) != 0))])
-    if "direction" not in frame:
-        out["direction"] = _direction_from_order(x, segment)
-    if "time_s" in frame:
-        t = frame["time_s"].to_numpy(float)
-        out["elapsed_s"] = t - t[0]
-        length_x = (frame["contraction_mm"].to_numpy(float) if "contraction_mm" in frame
-                    else x)
+    out["direction"] = curves.direction
+    if np.all(np.isfinite(curves.elapsed_s)):
+        out["elapsed_s"] = curves.elapsed_s
+        sweep = curves.moving == 0
+        rate = np.where(sweep, curves.rate, 0.0)
+        if "contraction_mm" in frame and curves.contraction_column == "contraction_pct":
+            if "l0_mm" in frame:
+                rate = rate * frame["l0_mm"].to_numpy(float) / 100.0
+            else:
+                rate = rate * frame["contraction_mm"].to_numpy(float) / np.where(
+                    frame["contraction_pct"].to_numpy(float) != 0,
+                    frame["contraction_pct"].to_numpy(float), np.nan)
         name = "speed_mm_s" if "contraction_mm" in frame else "speed_pct_s"
-        out[name] = _rate(length_x, t, segment)
+        out[name] = np.nan_to_num(rate)
+        if not sweep.all():
+            out["pressure_rate_kPa_s"] = np.nan_to_num(np.where(sweep, 0.0, curves.rate))
+    if "trial" in frame or "cycle" in frame:
+        out["repeat"] = curves.repeat
     return out
 
 
-def _direction_from_order(x: np.ndarray, segment: np.ndarray) -> np.ndarray:
-    """+1 where the contraction grows, −1 where it falls, within runs of constant pressure:
-    the step that led to a sample, else the step that leaves it, else the nearest known."""
-    n = len(x)
-    d = np.zeros(n)
-    same_prev = np.zeros(n, bool)
-    same_prev[1:] = segment[1:] == segment[:-1]
-    back = np.zeros(n)
-    back[1:] = np.sign(x[1:] - x[:-1])
-    d[same_prev] = back[same_prev]
-    fwd = np.zeros(n)
-    fwd[:-1] = np.sign(x[1:] - x[:-1])
-    same_next = np.zeros(n, bool)
-    same_next[:-1] = segment[:-1] == segment[1:]
-    fill = (d == 0) & same_next
-    d[fill] = fwd[fill]
-    known = np.flatnonzero(d != 0)
-    if len(known) == 0:
-        return np.ones(n)
-    idx = np.flatnonzero(d == 0)
-    nearest = known[np.clip(np.searchsorted(known, idx), 0, len(known) - 1)]
-    d[idx] = d[nearest]
-    return d
-
-
-def _rate(x: np.ndarray, t: np.ndarray, segment: np.ndarray) -> np.ndarray:
-    v = np.zeros(len(x))
-    for s in np.unique(segment):
-        m = segment == s
-        if np.sum(m) >= 2 and np.all(np.diff(t[m]) > 0):
-            v[m] = np.gradient(x[m], t[m])
-    return v
+def _muscle_rows(bench) -> list[np.ndarray]:
+    """Row positions of each muscle of a bench file, in the order of ``bench.muscles``."""
+    idx = bench.frame.groupby("muscle", sort=False).indices
+    return [np.asarray(idx[m]) for m in bench.muscles]
 
 
 class StaticProblem:
@@ -130,21 +114,21 @@ class StaticProblem:
     def __init__(self, bench, spec: ModelSpec, *, n_folds: int = N_FOLDS):
         self.spec = spec
         self.bench = bench
-        frames = []
-        for _, rows in bench.groups():
-            if "time_s" in rows:
-                rows = rows.sort_values("time_s", kind="stable").reset_index(drop=True)
-            frames.append(derive_covariates(rows, spec))
+        frames, curve_ids = [], []
+        curves = bench.curves  # the file's one curve structure (pamid._data._curves)
+        for rows_idx in _muscle_rows(bench):
+            rows = bench.frame.iloc[rows_idx].reset_index(drop=True)
+            c = curves.take(rows_idx)
+            frames.append(derive_covariates(rows, spec, c))
+            curve_ids.append(c.curve)
         self.frames = frames
         allrows = pd.concat(frames, ignore_index=True)
         self.covariates = self._covariate_names(allrows)
         self.effects = self._effects(allrows)
-        groups, curves, feats, folds = [], [], [], []
-        for f in frames:
+        groups, feats, folds = [], [], []
+        for f, curve in zip(frames, curve_ids, strict=True):
             x = spec.x_from_frame(f, bench.path)
             groups.append((x, f["force_N"].to_numpy(float)))
-            curve = _curves(f)
-            curves.append(curve)
             fold = _folds(curve, n_folds)
             folds.append(fold)
             # Features for all data, then for each fold with the covariates clamped to the
@@ -157,7 +141,7 @@ class StaticProblem:
                         for c in self.covariates if c in train}
                 per_fold.append(self._features(f, clip))
             feats.append(per_fold)
-        self.data = pack(groups, curves)
+        self.data = pack(groups, curve_ids)
         m, n = self.data.y.shape
         self.n_folds = max(len(ft) for ft in feats) - 1
         self.n_features = feats[0][0].shape[1]
@@ -181,7 +165,8 @@ class StaticProblem:
 
     def _covariate_names(self, rows: pd.DataFrame) -> list[str]:
         names = ["direction", "pressure_kPa", self.spec.contraction_column]
-        for c in ("elapsed_s", "speed_mm_s", "speed_pct_s", "temperature_C", "cycle"):
+        for c in ("elapsed_s", "speed_mm_s", "speed_pct_s", "pressure_rate_kPa_s",
+                  "temperature_C", "cycle", "repeat"):
             if c in rows:
                 names.append(c)
         names += [c for c in self.bench.covariates if c in rows and c not in names
@@ -269,7 +254,13 @@ class StaticProblem:
     # -- fitting -----------------------------------------------------------------------------
 
     def evaluate(self, sets: list[tuple[str, ...]]) -> list[SetFit]:
-        """Fit every set on all data and on every fold, in one batched call."""
+        """Fit every set on all data and on every fold, in one batched call.
+
+        A lane is (set, muscle, fold); it carries only indices. The muscle's samples, its
+        feature columns and its fold's weights are gathered inside the compiled function,
+        lane by lane, so that the memory is the muscles' data plus O(lanes per call × rows)
+        of temporaries: never lanes × rows × features on the host.
+        """
         m, n = self.data.y.shape
         k = self.spec.n_params
         slots = [[c for name in s if name != "compliance" for c in self.effect(name).columns]
@@ -288,13 +279,7 @@ class StaticProblem:
             cols[i, : len(s)] = s
             colmask[i, : len(s)] = 1.0
             comp[i] = float("compliance" in sets[i])
-        w = self.data.w[lanes_muscle]
-        held = (self.fold[lanes_muscle] == (lanes_fold[:, None] - 1)) & (lanes_fold[:, None] > 0)
-        w_train = np.where(held, 0.0, w)
-        w_test = np.where(held, w, 0.0)
-        feats = np.take_along_axis(
-            self.features[lanes_muscle, lanes_fold], cols[lanes_set][:, None, :], axis=2
-        ) * colmask[lanes_set][:, None, :]
+        shared = self._shared_arrays()
         # Lanes with and without the compliance are solved by two compiled functions: the
         # implicit force law costs four Newton steps that the other lanes do not need.
         lane_comp = comp[lanes_set] > 0
@@ -304,11 +289,8 @@ class StaticProblem:
             if len(sel) == 0:
                 continue
             parts[flag] = (sel, _fit_lanes(
-                self.spec, flag, jnp.asarray(self.theta0[lanes_muscle[sel]]),
-                tuple(jnp.asarray(xi[lanes_muscle[sel]]) for xi in self.data.x),
-                jnp.asarray(self.data.y[lanes_muscle[sel]]), jnp.asarray(w_train[sel]),
-                jnp.asarray(w_test[sel]), jnp.asarray(feats[sel]),
-                jnp.asarray(colmask[lanes_set[sel]]),
+                self.spec, flag, shared, lanes_muscle[sel], lanes_fold[sel],
+                cols[lanes_set[sel]], colmask[lanes_set[sel]],
             ))
         outs = []
         for j in range(7):
@@ -318,20 +300,26 @@ class StaticProblem:
                 arr[sel] = np.asarray(out[j])
             outs.append(arr)
         params, sse, sse_test, resid, jtj_inv, ok, rank = outs
+        w = np.asarray(self.data.w)
+        curve = np.maximum(np.asarray(self.data.curve), 0)
+        n_used = np.sum(w > 0, axis=1)
         results = []
         for i, s in enumerate(sets):
             full = (lanes_set == i) & (lanes_fold == 0)
             cv = (lanes_set == i) & (lanes_fold > 0)
-            n_used = np.sum(self.data.w > 0, axis=1)
-            unit_sse = np.zeros((m, self.n_curves))
-            lane_idx = np.flatnonzero(cv)
-            np.add.at(unit_sse, (lanes_muscle[lane_idx][:, None], np.maximum(
-                self.data.curve[lanes_muscle[lane_idx]], 0)),
-                w_test[lane_idx] * resid[lane_idx] ** 2)
+            # Held-out squared error per (muscle, curve), from the rows each cv lane held
+            # out (muscles × folds × rows for one set: the size of the data, times folds).
+            lane = np.flatnonzero(cv)
+            mu = lanes_muscle[lane]
+            w_test = np.where(self.fold[mu] == lanes_fold[lane][:, None] - 1, w[mu], 0.0)
+            unit_sse = np.bincount(
+                (mu[:, None] * self.n_curves + curve[mu]).ravel(),
+                (w_test * resid[lane] ** 2).ravel(), minlength=m * self.n_curves,
+            ).reshape(m, self.n_curves)
             results.append(SetFit(
                 effects=tuple(s), sse=sse[full], n=n_used, k=rank[full],
                 cv_unit_sse=unit_sse[self.curve_used],
-                cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test[cv] > 0)),
+                cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test > 0)),
                 converged=ok[full] & self.baseline_converged,
                 extra={"params": params[full], "jtj_inv": jtj_inv[full],
                        "full_rank": rank[full] == k + len(slots[i]) + int(comp[i]),
@@ -339,16 +327,13 @@ class StaticProblem:
             ))
         return results
 
-
-def _curves(frame: pd.DataFrame) -> np.ndarray:
-    """Sweep index of each sample: a new sweep where pressure, direction or cycle changes."""
-    keys = [frame["pressure_kPa"].to_numpy(float), frame["direction"].to_numpy(float)]
-    if "cycle" in frame:
-        keys.append(frame["cycle"].to_numpy(float))
-    change = np.zeros(len(frame), bool)
-    for k in keys:
-        change[1:] |= k[1:] != k[:-1]
-    return np.cumsum(change)
+    def _shared_arrays(self):
+        """What every lane gathers from, on the device once: (θ0, x, y, w, fold, features)."""
+        if getattr(self, "_shared", None) is None:
+            self._shared = (jnp.asarray(self.theta0), tuple(jnp.asarray(xi) for xi in self.data.x),
+                            jnp.asarray(self.data.y), jnp.asarray(self.data.w),
+                            jnp.asarray(self.fold), jnp.asarray(self.features))
+        return self._shared
 
 
 def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
@@ -377,18 +362,85 @@ def _predict(spec, theta, c, x, with_compliance: bool):
     return f
 
 
-def _fit_lanes(spec, with_compliance, *arrays):
-    """Solve the lanes; their count is padded to a power of two (repeating the last lane),
-    so that the steps of a forward selection reuse a few compiled shapes."""
-    n = jax.tree.leaves(arrays)[0].shape[0]
-    size = max(64, 1 << (n - 1).bit_length())
+#: Bytes of temporaries per sample of one lane in the compiled lane function: XLA's memory
+#: analysis of ``_fit_lanes_jit`` on the CPU (8 lanes of 10,000 samples) gave 400–590 B for
+#: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance.
+LANE_BYTES_PER_SAMPLE = 1024
+#: Temporaries one compiled call may hold: lanes per call = this / (bytes per lane). Two CPU
+#: threads run calls side by side (:func:`pamid._fit._batch.map_lanes`).
+CALL_BUDGET_BYTES = 256 * 2**20
+#: Fewest lanes a call is padded to when the samples are few: the steps of a forward
+#: selection then reuse one compiled shape...
+MIN_LANES = 64
+#: ... as long as the padded call holds at most this many lane-samples: with more samples
+#: the padding costs more than compiling another shape (one muscle of 3,000 rows: 6 lanes
+#: with the compliance padded to 64 took most of a step's time).
+MIN_LANE_SAMPLES = 64 * 1024
+
+
+def lanes_per_call(n_samples: int) -> int:
+    """Lanes per compiled call for muscles of ``n_samples`` (padded) samples: a power of two
+    whose temporaries fit :data:`CALL_BUDGET_BYTES`, at most ``CHUNK_LANES``."""
+    from .._fit._batch import CHUNK_LANES
+
+    fit = max(1, CALL_BUDGET_BYTES // (LANE_BYTES_PER_SAMPLE * max(n_samples, 1)))
+    return min(CHUNK_LANES, 1 << (fit.bit_length() - 1))
+
+
+def _fit_lanes(spec, with_compliance, shared, muscle, fold, cols, colmask):
+    """Solve the lanes, in calls of :func:`lanes_per_call` lanes. Fewer lanes than that are
+    padded to a power of two (repeating the last lane), at least ``MIN_LANES`` while that
+    stays within ``MIN_LANE_SAMPLES``, so that the steps of a forward selection reuse a few
+    compiled shapes; more are cut into calls of that many (:func:`pamid._fit._batch.
+    map_lanes` pads only the last)."""
+    n = len(muscle)
+    n_samples = shared[2].shape[1]
+    chunk = lanes_per_call(n_samples)
+    fewest = min(MIN_LANES, 1 << (max(1, MIN_LANE_SAMPLES // n_samples).bit_length() - 1))
+    size = min(chunk, max(fewest, 1 << (n - 1).bit_length())) if n <= chunk else n
     idx = np.minimum(np.arange(size), n - 1)
-    padded = jax.tree.map(lambda a: a[idx], arrays)
-    out = map_lanes(lambda *a: _fit_lanes_jit(spec, with_compliance, *a), *padded)
+    lanes = (muscle[idx], fold[idx], cols[idx], colmask[idx])
+    run = functools.partial(_fit_lanes_jit, spec, with_compliance)
+    name = builtin_key(spec)
+    if name is not None and len(lane_devices()) == 1:
+        # Through the exported program on disk when the command line keeps them: a new
+        # process then skips tracing the lanes (most of a warm diagnosis of 1,000 rows).
+        key = ("diagnose_lanes", *name, with_compliance, MAX_ITER)
+        out = map_lanes(lambda *a: _export_cache.call(key, run, shared, *a), *lanes,
+                        chunk=chunk)
+    else:
+        out = map_lanes(lambda *a: run(shared, *a), *lanes, chunk=chunk)
     return jax.tree.map(lambda a: a[:n], out)
 
 
-def _lane(spec, with_compliance, theta0, x, y, w, w_test, feats, colmask):
+def numerical_rank(jac, rtol: float = 1e-9):
+    """Numerical rank of ``jac`` (n × p) with its columns scaled to unit length: the
+    singular values above ``rtol`` times the largest. Constants the data cannot tell apart
+    count once in the BIC.
+
+    J = Q·R first (Householder, backward stable: R has J's singular values to rounding),
+    then the SVD of the p × p R. The SVD of the tall J itself allocated n × n on the CPU
+    (47 GB for one muscle of 9,596 samples in a batch of 64 lanes); Q·R needs n × p. The
+    eigenvalues of the scaled JᵀJ would square the condition number: a rank-deficient J
+    gives eigenvalues of rounding size, ~1e-16 of the largest, above a 1e-18 threshold.
+    """
+    norms = jnp.sqrt(jnp.sum(jac**2, axis=0))
+    scaled_jac = jac / jnp.where(norms > 0, norms, 1.0)
+    sv = jnp.linalg.svd(jnp.linalg.qr(scaled_jac, mode="r"), compute_uv=False)
+    return jnp.sum(sv > sv[0] * rtol)
+
+
+def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
+    """One lane: the set's effect columns ``cols`` (masked by ``colmask``) fitted to
+    ``muscle``'s samples, all of them (``fold`` 0) or all but fold ``fold − 1``."""
+    theta0_all, x_all, y_all, w_all, fold_all, feat_all = shared
+    theta0 = theta0_all[muscle]
+    x = tuple(xi[muscle] for xi in x_all)
+    y = y_all[muscle]
+    held = (fold_all[muscle] == fold - 1) & (fold > 0)
+    w = jnp.where(held, 0.0, w_all[muscle])
+    w_test = jnp.where(held, w_all[muscle], 0.0)
+    feats = jnp.take(feat_all[muscle, fold], cols, axis=1)
     k = theta0.shape[0]
     s = feats.shape[1]
     comp = 1.0 if with_compliance else 0.0
@@ -441,20 +493,16 @@ def _lane(spec, with_compliance, theta0, x, y, w, w_test, feats, colmask):
     r, jac = normal(params)
     a = jac.T @ jac + eye_off
     jtj_inv = jnp.linalg.inv(a) * mask[:, None] * mask[None, :]
-    # Numerical rank of the column-scaled Jacobian: constants the data cannot tell apart
-    # count once in the BIC.
-    norms = jnp.sqrt(jnp.sum(jac**2, axis=0))
-    sv = jnp.linalg.svd(jac / jnp.where(norms > 0, norms, 1.0), compute_uv=False)
-    rank = jnp.sum(sv > sv[0] * 1e-9)
+    rank = numerical_rank(jac)
     resid_all = y - pred(params)
     sse_test = jnp.sum(w_test * resid_all**2)
     ok = jnp.all(jnp.isfinite(params)) & (lam < 1e12)
     return params, sse, sse_test, resid_all, jtj_inv, ok, rank
 
 
-def _fit_lanes_impl(spec, with_compliance, theta0, x, y, w, w_test, feats, colmask):
-    return jax.vmap(lambda *a: _lane(spec, with_compliance, *a))(
-        theta0, x, y, w, w_test, feats, colmask)
+def _fit_lanes_impl(spec, with_compliance, shared, muscle, fold, cols, colmask):
+    return jax.vmap(lambda *a: _lane(spec, with_compliance, shared, *a))(
+        muscle, fold, cols, colmask)
 
 
 _fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))

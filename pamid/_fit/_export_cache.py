@@ -130,7 +130,11 @@ def _load_or_export(key: str, fn, args):
         _remember(failed, b"")
         return None
     _remember(path, data)
-    return jax.jit(exported.call)
+    # The program as later processes will read it: compiled from the exported object
+    # itself, its lowering differed from the deserialized one's, so the compilation cache
+    # missed once more in the second process (pamid diagnose, 3,000 rows: 17 s of CPU in
+    # the second run against 4.6 s in the third).
+    return jax.jit(export.deserialize(bytearray(data)).call)
 
 
 def _remember(path: Path, data: bytes) -> None:

@@ -1,0 +1,62 @@
+"""What the ``pamid`` command says when something other than its input fails.
+
+Exit codes of every command: 0 done; 1 a fit that did not converge (reported, not dropped);
+2 bad input or a bad output place (one line naming the file, column and row); 3 an internal
+failure: out of memory, or a defect in pamid (one line, never a traceback; ``PAMID_DEBUG=1``
+re-raises it); 130 interrupted (Ctrl-C); 141 stdout closed early (``pamid fit --json | head``:
+128 + SIGPIPE, what a shell reports for a program ended by a closed pipe), with nothing
+printed.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141
+#: Longest message quoted from an exception (XLA's run to many lines).
+MAX_QUOTE = 300
+
+
+def is_out_of_memory(exc: BaseException) -> bool:
+    """A ``MemoryError`` (NumPy, Python) or XLA's RESOURCE_EXHAUSTED (a JAX runtime error:
+    ``jax.errors.JaxRuntimeError``, ``XlaRuntimeError`` in older jaxlib)."""
+    if isinstance(exc, MemoryError):
+        return True
+    text = str(exc)
+    return "RESOURCE_EXHAUSTED" in text or "Out of memory" in text
+
+
+def _quote(exc: BaseException) -> str:
+    lines = [s.strip() for s in str(exc).splitlines() if s.strip()]
+    text = lines[0] if lines else ""
+    return text if len(text) <= MAX_QUOTE else text[: MAX_QUOTE - 1] + "…"
+
+
+def describe(exc: BaseException, command: str | None) -> str:
+    """One line: what happened and what to do."""
+    what = f"{type(exc).__name__}: {_quote(exc)}" if _quote(exc) else type(exc).__name__
+    if is_out_of_memory(exc):
+        advice = ("try --max-rows N or a machine with more memory" if command == "diagnose"
+                  else "try a smaller file or a machine with more memory")
+        return f"out of memory ({what}); {advice}"
+    return (f"internal error ({what}); rerun with PAMID_DEBUG=1 for the traceback and "
+            "report it")
+
+
+def debugging() -> bool:
+    """``PAMID_DEBUG`` set to anything but empty or 0: failures keep their traceback."""
+    return os.environ.get("PAMID_DEBUG", "") not in ("", "0")
+
+
+def silence_stdout() -> None:
+    """After a broken pipe: point stdout at the null device, so that the interpreter's last
+    flush at exit does not fail again and print its own complaint."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):  # stdout is no file (a test's capture)
+        pass

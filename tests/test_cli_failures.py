@@ -1,0 +1,351 @@
+"""No traceback, ever: what ``pamid`` says and returns when something other than its input
+fails (out of memory, a defect, Ctrl-C, a closed stdout), and the memory diagnose needs.
+
+Exit codes (pamid/_commands/failure.py): 2 bad input, 1 not converged, 3 internal failure,
+130 interrupted, 141 stdout closed early.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import pamid
+from pamid._cli import main
+from pamid._commands import failure
+from pamid._diagnose import _static
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def bench_csv(tmp_path_factory):
+    """One muscle of 300 rows (the default protocol, repeats averaged)."""
+    frame = pamid.simulate_sarosi_bench(jax.random.key(3), pamid.table_3_1(),
+                                        pamid.SarosiProtocol(min_force_N=10.0))
+    path = tmp_path_factory.mktemp("failures") / "bench.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+def _one_line(err: str) -> str:
+    lines = [s for s in err.splitlines() if s.strip() and not s.startswith("[")]
+    lines = [s for s in lines if not s.startswith("pamid: warning:")]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def _raise(exc):
+    def boom(*args, **kwargs):
+        raise exc
+
+    return boom
+
+
+# -- out of memory, deep in the diagnose path --------------------------------------------------
+
+
+def test_memory_error_deep_in_diagnose_is_one_line_and_exit_3(bench_csv, monkeypatch, capsys):
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    monkeypatch.setattr(_static, "_fit_lanes", _raise(
+        MemoryError("Unable to allocate 47.0 GiB for an array with shape (64, 9596, 9596)")))
+    assert main(["diagnose", str(bench_csv), "--json"]) == failure.EXIT_INTERNAL == 3
+    captured = capsys.readouterr()
+    line = _one_line(captured.err)
+    assert line.startswith("pamid: error: out of memory (MemoryError: Unable to allocate 47.0")
+    assert "try --max-rows N or a machine with more memory" in line
+    assert captured.out == ""
+
+
+def test_xla_resource_exhausted_is_out_of_memory(bench_csv, monkeypatch, capsys):
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    # what XLA raised for one muscle of 10,000 rows before the rank stopped using the SVD
+    # of the tall Jacobian: several lines, the first one says it
+    exc = jax.errors.JaxRuntimeError(
+        "RESOURCE_EXHAUSTED: Out of memory allocating 51256399720 bytes.\n"
+        "  while running replica 0 and partition 0 of a replicated computation")
+    monkeypatch.setattr(_static, "_fit_lanes", _raise(exc))
+    assert main(["diagnose", str(bench_csv)]) == 3
+    line = _one_line(capsys.readouterr().err)
+    assert line == ("pamid: error: out of memory (JaxRuntimeError: RESOURCE_EXHAUSTED: Out of "
+                    "memory allocating 51256399720 bytes.); try --max-rows N or a machine with "
+                    "more memory")
+
+
+def test_out_of_memory_elsewhere_suggests_a_smaller_file(bench_csv, monkeypatch, capsys):
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    import pamid._fit._api as fit_api
+
+    monkeypatch.setattr(fit_api, "fit_least_squares", _raise(MemoryError()))
+    assert main(["fit", str(bench_csv), "--json"]) == 3
+    line = _one_line(capsys.readouterr().err)
+    assert line == ("pamid: error: out of memory (MemoryError); try a smaller file or a "
+                    "machine with more memory")
+
+
+# -- any other failure ------------------------------------------------------------------------
+
+
+def test_internal_error_is_one_line_naming_the_type(bench_csv, monkeypatch, capsys):
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    monkeypatch.setattr(_static.StaticProblem, "evaluate", _raise(KeyError("slots")))
+    assert main(["diagnose", str(bench_csv)]) == 3
+    line = _one_line(capsys.readouterr().err)
+    assert line == ("pamid: error: internal error (KeyError: 'slots'); rerun with "
+                    "PAMID_DEBUG=1 for the traceback and report it")
+
+
+def test_pamid_debug_reraises(bench_csv, monkeypatch):
+    monkeypatch.setenv("PAMID_DEBUG", "1")
+    monkeypatch.setattr(_static.StaticProblem, "evaluate", _raise(RuntimeError("deep defect")))
+    with pytest.raises(RuntimeError, match="deep defect"):
+        main(["diagnose", str(bench_csv)])
+
+
+def test_keyboard_interrupt_is_one_line_and_exit_130(bench_csv, monkeypatch, capsys):
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    monkeypatch.setattr(_static.StaticProblem, "evaluate", _raise(KeyboardInterrupt()))
+    assert main(["diagnose", str(bench_csv)]) == 130
+    assert _one_line(capsys.readouterr().err) == "pamid: interrupted"
+
+
+def test_bad_input_keeps_exit_2(tmp_path, capsys):
+    path = tmp_path / "bad.csv"
+    path.write_text("pressure_kPa,contraction_pct,force_N\n100,1,50\n100,x,40\n")
+    assert main(["diagnose", str(path)]) == 2
+    assert "row 2" in _one_line(capsys.readouterr().err)
+
+
+def test_message_of_an_exception_without_text():
+    assert failure.describe(RuntimeError(), "fit") == (
+        "internal error (RuntimeError); rerun with PAMID_DEBUG=1 for the traceback and "
+        "report it")
+    long = failure.describe(ValueError("x" * 1000), "fit")
+    assert len(long) < failure.MAX_QUOTE + 120
+
+
+# -- a closed stdout --------------------------------------------------------------------------
+
+
+def test_broken_pipe_in_process_is_quiet(monkeypatch, capsys):
+    import pamid._commands.dynamics as dynamics
+
+    # register() binds the function when the parser is built, i.e. inside main()
+    monkeypatch.setattr(dynamics, "cmd_lifting_mass", _raise(BrokenPipeError(32, "Broken pipe")))
+    assert main(["simulate", "lifting-mass", "--pressure-kPa", "400", "--mass-kg", "50",
+                 "--x0-mm", "50", "--json"]) == failure.EXIT_BROKEN_PIPE == 141
+    assert capsys.readouterr().err == ""
+
+
+def test_broken_pipe_of_a_real_process_exits_quietly():
+    """``pamid simulate lifting-mass --json`` into a pipe whose reader has gone: no output
+    on stderr at all (no traceback, no "Exception ignored"), exit 141."""
+    env = {k: v for k, v in os.environ.items() if k != "PAMID_DEBUG"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pamid._cli", "simulate", "lifting-mass", "--pressure-kPa",
+         "400", "--mass-kg", "50", "--x0-mm", "50", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT, env=env)
+    proc.stdout.close()  # the reader is gone before the command writes (it imports jax first)
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141, err
+    assert err == ""
+
+
+def test_the_same_command_into_an_open_pipe_prints_its_json():
+    """The control for the test above: the command does print, and exits 0."""
+    out = subprocess.run(
+        [sys.executable, "-m", "pamid._cli", "simulate", "lifting-mass", "--pressure-kPa",
+         "400", "--mass-kg", "50", "--x0-mm", "50", "--json"],
+        capture_output=True, cwd=ROOT, timeout=300, check=False)
+    assert out.returncode == 0
+    assert json.loads(out.stdout)["system"] == "lifting-mass"
+
+
+# -- the memory of diagnose grows with the rows, not their square -----------------------------
+
+
+def _svd_rank(a: np.ndarray) -> int:
+    norms = np.linalg.norm(a, axis=0)
+    sv = np.linalg.svd(a / np.where(norms > 0, norms, 1.0), compute_uv=False)
+    return int(np.sum(sv > sv[0] * 1e-9))
+
+
+def _known_matrices():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(50, 6))
+    dup = a.copy()
+    dup[:, 4] = dup[:, 1]  # a repeated column
+    combo = a.copy()
+    combo[:, 5] = 2.0 * a[:, 0] - 3.0 * a[:, 2]  # a linear combination
+    zero = a.copy()
+    zero[:, 3] = 0.0  # a masked constant
+    scales = a * np.array([1e-8, 1.0, 1e6, 1.0, 1e3, 1.0])  # full rank, badly scaled
+    near = a.copy()
+    near[:, 2] = a[:, 1] + 1e-12 * a[:, 0]  # equal to rounding: rank 5
+    wide = rng.normal(size=(4, 6))  # fewer rows than constants
+    ones = np.ones((20, 3))
+    return {"full": (a, 6), "duplicate": (dup, 5), "combination": (combo, 5),
+            "zero column": (zero, 5), "scaled": (scales, 6), "nearly equal": (near, 5),
+            "wide": (wide, 4), "rank one": (ones, 1)}
+
+
+@pytest.mark.parametrize("name", list(_known_matrices()))
+def test_numerical_rank_equals_the_svd_rank(name):
+    a, rank = _known_matrices()[name]
+    assert _svd_rank(a) == rank
+    assert int(_static.numerical_rank(jnp.asarray(a))) == rank
+
+
+def test_numerical_rank_batched_like_the_lanes():
+    mats = _known_matrices()
+    stack = np.stack([mats[k][0] for k in ("full", "duplicate", "combination", "scaled")])
+    ranks = jax.jit(jax.vmap(_static.numerical_rank))(jnp.asarray(stack))
+    np.testing.assert_array_equal(np.asarray(ranks), [6, 5, 5, 6])
+
+
+def _problem(rows: int, tmp_path):
+    from pamid._data._bench import load_bench
+    from pamid._fit._spec import get_model
+
+    points = rows // 100  # 5 pressures × 2 directions × 10 repeats
+    proto = pamid.SarosiProtocol(points_per_curve=points, repeats=10, average_repeats=False,
+                                 seconds_per_point=200.0 / points, min_force_N=10.0)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(0), pamid.table_3_1(), proto)
+    path = tmp_path / f"rows{rows}.csv"
+    frame.to_csv(path, index=False)
+    bench = load_bench(path)
+    return _static.StaticProblem(bench, get_model("sarosi", bench.frame))
+
+
+def test_lane_temporaries_grow_linearly_with_the_rows(tmp_path):
+    """XLA's own accounting of the compiled lanes: 10× the rows, ~10× the temporaries (the
+    SVD of the tall Jacobian made it ~100×: 6.4 GB for 8 lanes of 10,000 rows)."""
+    temps = {}
+    for rows in (2000, 20000):
+        problem = _problem(rows, tmp_path)
+        lanes = 8
+        args = (np.zeros(lanes, int), np.arange(lanes) % 6,
+                np.tile(np.arange(4), (lanes, 1)), np.ones((lanes, 4)))
+        compiled = _static._fit_lanes_jit.lower(
+            problem.spec, True, problem._shared_arrays(), *args).compile()
+        temps[rows] = compiled.memory_analysis().temp_size_in_bytes
+        assert temps[rows] / (lanes * rows) <= _static.LANE_BYTES_PER_SAMPLE
+    assert 8.0 < temps[20000] / temps[2000] < 12.0
+
+
+@pytest.mark.slow
+def test_evaluate_on_a_muscle_of_20000_rows(tmp_path):
+    """The first step of the selection on one muscle of 20,000 rows: every candidate, all
+    data and five folds (before: an n × n array per lane, 205 GB for 64 lanes)."""
+    problem = _problem(20000, tmp_path)
+    assert problem.features.shape[2] == 20000
+    sets = [(), *[(c,) for c in problem.candidate_names]]
+    fits = problem.evaluate(sets)
+    base = fits[0]
+    assert base.n[0] == 20000 and base.k[0] == 6
+    assert all(np.all(f.converged) for f in fits)
+    # no effect hidden: the baseline's RMSE is the reading noise (2 N, rounded to 0.1 N)
+    assert 1.9 < base.rmse < 2.1
+    assert base.cv_n == 20000  # every row held out once
+    assert base.extra["residual"].shape == (1, 20000)
+
+
+def test_start_subsample_of_a_long_muscle_is_a_gather_with_the_same_samples(monkeypatch):
+    """One muscle of many samples: the start's subsample is gathered (a program of fixed
+    size; one strided slice per stride made it grow with n) and equals the sliced one."""
+    from pamid._fit import _gauss_newton as gn
+
+    n, n_sub = 3000, 64
+    rng = np.random.default_rng(1)
+    values = jnp.asarray(rng.normal(size=(3, n)))
+    w = np.zeros((3, n))
+    w[0], w[1, :2000], w[2, :100] = 1.0, 1.0, 1.0
+    w = jnp.asarray(w)
+    assert -(-n // n_sub) > gn.SUBSAMPLE_MAX_STRIDES  # the gather path
+    (gathered,), w_gathered = gn._subsample((values,), w, n_sub)
+    monkeypatch.setattr(gn, "SUBSAMPLE_MAX_STRIDES", 10**6)
+    (sliced,), w_sliced = gn._subsample((values,), w, n_sub)
+    np.testing.assert_array_equal(gathered, sliced)
+    np.testing.assert_array_equal(w_gathered, w_sliced)
+    np.testing.assert_array_equal(gathered[0], values[0, ::47][:n_sub])  # stride ⌈3000/64⌉
+    np.testing.assert_array_equal(gathered[2], values[2, ::2][:n_sub])
+    assert float(jnp.sum(w_gathered[2])) == 50.0  # 100 samples at stride 2
+
+
+# -- --max-rows: a representative subsample of whole curves -----------------------------------
+
+
+def _sweeps(tmp_path, points, repeats, effects=(), name="sweeps.csv"):
+    proto = pamid.SarosiProtocol(points_per_curve=points, repeats=repeats,
+                                 average_repeats=False, min_force_N=10.0, effects=effects)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(5), pamid.table_3_1(), proto)
+    path = tmp_path / name
+    frame.to_csv(path, index=False)
+    return path
+
+
+def test_subsample_keeps_whole_curves_of_every_setting(tmp_path):
+    from pamid._data._bench import load_bench
+    from pamid._diagnose._api import subsample_curves
+
+    bench = load_bench(_sweeps(tmp_path, 40, 10))  # 100 curves of 40 rows
+    assert len(bench.frame) == 4000
+    same, note = subsample_curves(bench, 4000)
+    assert same is bench and note is None
+    sub, note = subsample_curves(bench, 1000)
+    frame = sub.frame
+    assert len(frame) == 1000 and note.startswith("25 of 100 whole curves")
+    key = ["pressure_kPa", "direction", "cycle"]
+    sizes = frame.groupby(key).size()
+    assert (sizes == 40).all()  # every kept curve is whole
+    # every setting (pressure × direction) keeps curves, from early and late cycles
+    per_setting = frame.groupby(["pressure_kPa", "direction"])["cycle"].agg(["nunique", "min",
+                                                                              "max"])
+    assert len(per_setting) == 10 and (per_setting["nunique"] >= 2).all()
+    assert per_setting["min"].max() <= 5 and per_setting["max"].min() >= 6
+    # the kept rows in file order, as they were
+    rows = frame["source_row"].to_numpy()
+    assert np.all(np.diff(rows) > 0)
+
+
+def test_subsample_thins_rows_when_one_curve_is_too_many(tmp_path):
+    from pamid._data._bench import load_bench
+    from pamid._diagnose._api import subsample_curves
+
+    bench = load_bench(_sweeps(tmp_path, 200, 1))  # 10 curves of 200 rows
+    sub, note = subsample_curves(bench, 50)
+    assert len(sub.frame) <= 50
+    assert note == "one row in 4 of 1 of 10 curves, evenly spread over settings and time"
+
+
+def test_cli_max_rows_says_so_in_json_and_report(tmp_path, capsys):
+    from pamid._data._virtual_effects import InjectedHysteresis
+
+    path = _sweeps(tmp_path, 40, 10, effects=(InjectedHysteresis(N_at_3_bar=9.0),))
+    out = tmp_path / "diag"
+    assert main(["diagnose", str(path), "--max-rows", "1200", "--json", "--out",
+                 str(out)]) == 0
+    captured = capsys.readouterr()
+    obj = json.loads(captured.out)
+    assert obj["rows_total"] == 4000
+    assert obj["rows_used"] == obj["n"] <= 1200
+    assert obj["subsample"].startswith("30 of 100 whole curves")
+    assert obj["selected"][0] == "hysteresis"
+    assert "diagnosing 1200 of 4000 rows" in captured.err
+    report = (out / "report.txt").read_text()
+    assert "subsample (--max-rows): 1200 of the file's 4000 rows diagnosed" in report
+
+
+def test_cli_max_rows_must_be_positive(tmp_path, capsys):
+    path = _sweeps(tmp_path, 10, 1)
+    assert main(["diagnose", str(path), "--max-rows", "0"]) == 2
+    assert "max_rows (--max-rows) must be at least 1, not 0" in _one_line(capsys.readouterr().err)
