@@ -66,7 +66,7 @@ def main(argv=None) -> int:
         t["load_bench"] = t0
         spec = get_model("sarosi", bench.frame)
         t0 = clocks()
-        data = bench_to_fit_data(bench, spec)
+        data = bench_to_fit_data(bench, spec, curves="bootstrap" in intervals)  # as the command
         t["pack"] = t0
         t0 = clocks()
         theta, _, _ = solve(spec, data)
