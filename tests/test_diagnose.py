@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 import pamid
+from pamid._data._curves import find_curves
 from pamid._data._virtual_effects import (
     InjectedCompliance,
     InjectedCovariate,
@@ -26,7 +27,6 @@ from pamid._data._virtual_effects import (
 )
 from pamid._diagnose._api import diagnose
 from pamid._diagnose._residual import covariate_dependence, ljung_box, runs_test
-from pamid._data._curves import find_curves
 
 NOISE_N = 2.0 / math.sqrt(5.0)
 SPEEDS = (1.0, 3.0, 2.0, 1.5)  # seconds per point of successive sweeps
@@ -254,3 +254,11 @@ def test_decay_file_recognised_without_a_trial_column(tmp_path, capsys):
     assert not _is_decay_file(_bench(tmp_path, ()))
     assert main(["diagnose", str(path)]) == 2  # read as a decay file: it asks for J
     assert "--inertia" in capsys.readouterr().err
+
+
+def test_too_few_rows_for_a_diagnosis_is_said_not_crashed(tmp_path):
+    """One or two rows ended in an IndexError inside the lane fit (exit 3)."""
+    path = tmp_path / "two.csv"
+    path.write_text("pressure_kPa,force_N,contraction_pct\n100,5,1\n175,5,1\n")
+    with pytest.raises(pamid.BenchDataError, match="needs at least 8 rows per muscle"):
+        diagnose(path)

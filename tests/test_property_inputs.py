@@ -176,22 +176,12 @@ def test_fit_keeps_its_contract_on_random_tables(workdir, data):
     check_contract(path, ["fit", str(path), "--json", "--intervals", "wald"])
 
 
-# Bench files of one or two rows: diagnose fails inside pamid/_diagnose (exit 3: "internal
-# error (IndexError: Cannot do a non-empty jnp.take() from an empty axis.)", from _lane in
-# pamid/_diagnose/_static.py), found by this test on 2026-11-24 and left to the diagnose
-# code's owners; the random tables for diagnose have 0 or 8 rows until it is fixed. Once it
-# is, these examples fail as passing unexpectedly: drop the xfail marks and add 1 and 2 to
-# the sizes.
-TINY_BUG = ("pamid diagnose on a bench file of one or two rows: internal error in "
-            "pamid/_diagnose/_static.py (IndexError from jnp.take)")
-
-
 @SETTINGS
-@given(data=tables("bench", sizes=(0, 8)))
-@example(data=b"pressure_kPa,force_N,contraction_pct\n100,200,5\n").xfail(
-    reason=TINY_BUG, raises=AssertionError)
-@example(data=b"pressure_kPa,force_N,contraction_pct\n100,5,1\n175,5,1").xfail(
-    reason=TINY_BUG, raises=AssertionError)
+@given(data=tables("bench", sizes=(0, 1, 2, 8)))
+# one and two rows ended in an internal error (IndexError in the lane fit) until
+# diagnose checked that every muscle has more rows than the constants it compares
+@example(data=b"pressure_kPa,force_N,contraction_pct\n100,200,5\n")
+@example(data=b"pressure_kPa,force_N,contraction_pct\n100,5,1\n175,5,1")
 def test_diagnose_keeps_its_contract_on_random_tables(workdir, data):
     path = write(workdir, data)
     check_contract(path, ["diagnose", str(path), "--json"])

@@ -228,6 +228,24 @@ def subsample_curves(bench, max_rows: int):
     return sub, note
 
 
+def _check_enough_rows(bench, spec) -> None:
+    """A diagnosis compares fits with more constants than the model's: a muscle needs at
+    least the model's constants plus two rows, or nothing it reports could be trusted."""
+    from .._errors import BenchDataError
+
+    need = spec.n_params + 2
+    counts = bench.frame.groupby("muscle", sort=False).size()
+    few = counts[counts < need]
+    if len(few):
+        who = f"muscle '{few.index[0]}' has" if bench.has_muscle_column else "the file has"
+        raise BenchDataError(
+            bench.path,
+            f"{who} {int(few.iloc[0])} row(s); diagnosing the {spec.name} model "
+            f"({spec.n_params} constants) needs at least {need} rows per muscle "
+            "(the constants, an added effect and one degree of freedom)",
+        )
+
+
 def _diagnose_bench(bench, model: str, n_folds: int, progress,
                     max_rows: int | None = None) -> Diagnosis:
     from .._fit._spec import get_model
@@ -241,6 +259,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
             progress(f"diagnosing {len(bench.frame)} of {rows_total} rows: {note} "
                      "(--max-rows)")
     spec = get_model(model, bench.frame)
+    _check_enough_rows(bench, spec)
     problem = StaticProblem(bench, spec, n_folds=n_folds)
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
                             progress=progress)
