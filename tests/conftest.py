@@ -6,6 +6,9 @@ run early if that ever stops being true, instead of letting tolerances fail one 
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from typing import NamedTuple
 
 import jax
@@ -92,3 +95,21 @@ def small_bench(theta31, tmp_path_factory) -> SmallBench:
     frame.to_csv(path, index=False)
     bench = pamid.load_bench(path)
     return SmallBench(theta, frame, bench, pamid.bench_to_fit_data(bench), frame_groups(frame))
+
+
+#: The installed command, as a user runs it (in a subprocess).
+PAMID = [sys.executable, "-m", "pamid._cli"]
+
+
+@pytest.fixture(scope="module")
+def pamid_cli(tmp_path_factory):
+    """``pamid_cli(args)`` runs the command in a subprocess with a compilation cache of the
+    test module's own and returns the CompletedProcess (text stdout and stderr)."""
+    cache = tmp_path_factory.mktemp("jax-cache")
+    env = {**os.environ, "PAMID_CACHE_DIR": str(cache), "JAX_PLATFORMS": "cpu"}
+
+    def run(args, timeout=900):
+        return subprocess.run(PAMID + [str(a) for a in args], capture_output=True, text=True,
+                              env=env, timeout=timeout)
+
+    return run

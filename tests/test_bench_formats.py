@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -23,7 +21,6 @@ from pamid._errors import BenchDataError
 AARL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / (
     "aarl_festo10mm_isometric.csv"
 )
-PAMID = [sys.executable, "-m", "pamid._cli"]
 
 
 def quiet_load(path, **kwargs):
@@ -538,19 +535,7 @@ def test_each_format_names_file_column_and_row(tmp_path, fmt):
 # ----------------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def env(tmp_path_factory):
-    import os
-
-    cache = tmp_path_factory.mktemp("jax-cache")
-    return {**os.environ, "PAMID_CACHE_DIR": str(cache), "JAX_PLATFORMS": "cpu"}
-
-
-def run(args, env):
-    return subprocess.run(PAMID + args, capture_output=True, text=True, env=env, timeout=600)
-
-
-def test_cli_fit_reads_a_german_excel_csv(tmp_path, env):
+def test_cli_fit_reads_a_german_excel_csv(tmp_path, pamid_cli):
     import jax
 
     import pamid
@@ -567,17 +552,17 @@ def test_cli_fit_reads_a_german_excel_csv(tmp_path, env):
     assert "," in path.read_text().splitlines()[1]
     args = ["fit", str(path), "--json", "--intervals", "wald",
             "--columns", "Druck=pressure_bar,Kraft=force_N,Kontraktion=contraction_pct"]
-    res = run(args + ["--sep", ";", "--decimal", ","], env)
+    res = pamid_cli(args + ["--sep", ";", "--decimal", ","])
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout)
     assert out["muscles"][0]["n"] == len(frame)
     assert out["muscles"][0]["converged"]
 
-    res = run(["fit", str(path), "--json", "--columns", "Druck=pressure_bar,Kraf=force_N"], env)
+    res = pamid_cli(["fit", str(path), "--json", "--columns", "Druck=pressure_bar,Kraf=force_N"])
     assert res.returncode == 2
     assert "Traceback" not in res.stderr
     assert f"{path}, column 'Kraf': the column mapping names 'Kraf'" in res.stderr
-    res = run(["fit", str(path), "--columns", "Druck"], env)
+    res = pamid_cli(["fit", str(path), "--columns", "Druck"])
     assert res.returncode == 2 and "HEADER=NAME" in res.stderr
 
 
@@ -595,10 +580,10 @@ def test_cli_reading_options_for_fit_and_diagnose():
         }
 
 
-def test_cli_diagnose_passes_the_reading_options(tmp_path, env):
+def test_cli_diagnose_passes_the_reading_options(tmp_path, pamid_cli):
     path = write(tmp_path, "Druck,Kraft,contraction_pct\n1,10,5\n")
-    res = run(["diagnose", str(path), "--json", "--columns", "Druck=pressure_bar,Kraf=force_N"],
-              env)
+    res = pamid_cli(["diagnose", str(path), "--json", "--columns",
+                     "Druck=pressure_bar,Kraf=force_N"])
     assert res.returncode == 2, res.stderr
     assert "Traceback" not in res.stderr
     assert "the column mapping names 'Kraf'" in res.stderr

@@ -5,9 +5,6 @@ transients) and write readable results. Skipped when the data are absent."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import matplotlib.image
@@ -16,25 +13,14 @@ import pytest
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 AARL = DATA / "aarl_festo10mm_isometric.csv"
 MARTENS = DATA / "martens_dmsp10_250.csv"
-PAMID = [sys.executable, "-m", "pamid._cli"]
 
 pytestmark = pytest.mark.skipif(not AARL.exists(), reason="measured data not present")
 
 
-@pytest.fixture(scope="module")
-def env(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("jax-cache")
-    return {**os.environ, "PAMID_CACHE_DIR": str(cache), "JAX_PLATFORMS": "cpu"}
-
-
-def run(args, env):
-    return subprocess.run(PAMID + args, capture_output=True, text=True, env=env, timeout=900)
-
-
-def test_fit_of_the_real_isometric_file_with_plots(tmp_path, env):
+def test_fit_of_the_real_isometric_file_with_plots(tmp_path, pamid_cli):
     before = AARL.read_bytes()
     out = tmp_path / "fit"
-    proc = run(["fit", str(AARL), "--out", str(out), "--json"], env)
+    proc = pamid_cli(["fit", str(AARL), "--out", str(out), "--json"])
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     doc = json.loads(proc.stdout)
@@ -49,11 +35,11 @@ def test_fit_of_the_real_isometric_file_with_plots(tmp_path, env):
     assert AARL.read_bytes() == before  # the input is never written
 
 
-def test_diagnose_of_the_real_isometric_file(tmp_path, env):
+def test_diagnose_of_the_real_isometric_file(tmp_path, pamid_cli):
     # A subsample of whole curves keeps the suite's time (the whole file: about 2 minutes,
     # 1.2 GB; benchmarks/README.md); the file is read as it comes.
     out = tmp_path / "diag"
-    proc = run(["diagnose", str(AARL), "--json", "--max-rows", "8000", "--out", str(out)], env)
+    proc = pamid_cli(["diagnose", str(AARL), "--json", "--max-rows", "8000", "--out", str(out)])
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     doc = json.loads(proc.stdout)
@@ -67,8 +53,8 @@ def test_diagnose_of_the_real_isometric_file(tmp_path, env):
 
 
 @pytest.mark.skipif(not MARTENS.exists(), reason="measured data not present")
-def test_fit_of_the_martens_force_map(tmp_path, env):
-    proc = run(["fit", str(MARTENS), "--json", "--out", str(tmp_path / "m")], env)
+def test_fit_of_the_martens_force_map(tmp_path, pamid_cli):
+    proc = pamid_cli(["fit", str(MARTENS), "--json", "--out", str(tmp_path / "m")])
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert doc["n_censored_dropped"] > 0 and doc["muscles"][0]["converged"]
