@@ -22,6 +22,8 @@ import warnings
 from pathlib import Path
 
 EXIT_BAD_INPUT = 2
+#: Arguments of the commands that name input files (never written; see pamid._io).
+_INPUT_ARGUMENTS = ("data", "decay", "model_json", "fit")
 
 
 def _enable_compilation_cache() -> None:
@@ -306,12 +308,17 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    from . import _io
     from ._commands import failure
     from ._errors import BenchDataError
     from ._fit import _export_cache
 
     exporting = _export_cache.directory()
     try:
+        # Before any computing: the output place can be written, and no output of this run
+        # can replace one of its input files (every writer of pamid._io checks).
+        _io.protect_inputs(getattr(args, name, None) for name in _INPUT_ARGUMENTS)
+        _io.check_output_place(getattr(args, "out", None))
         _enable_compilation_cache()
         with warnings.catch_warnings():
             warnings.simplefilter("always")
@@ -342,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         return failure.EXIT_INTERNAL
     finally:  # a caller in the same process (a test, a notebook) gets its setting back
         _export_cache.enable(exporting)
+        _io.protect_inputs([])
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

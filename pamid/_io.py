@@ -17,6 +17,9 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "OutputPlaceError",
+    "check_output_place",
+    "protect_inputs",
     "refuse_overwrite_input",
     "save_figure_atomic",
     "write_atomic",
@@ -40,6 +43,43 @@ def _umask() -> int:
     return _umask_cache
 
 
+class OutputPlaceError(ValueError):
+    """An output cannot be written where it was asked for (a folder in its place, a file
+    where a folder is needed, no permission, or an input file of the command)."""
+
+
+#: Input files of the running command: no writer here ever replaces one of them.
+_PROTECTED: list[Path] = []
+
+
+def protect_inputs(paths: Iterable[str | os.PathLike | None]) -> None:
+    """Declare the input files of the running command; every writer of this module then
+    refuses to write onto any of them (``pamid fit DIR/fit_M1.png --out DIR``). Replaces
+    the previous declaration; ``protect_inputs([])`` clears it."""
+    _PROTECTED[:] = [Path(p) for p in paths if p]
+
+
+def check_output_place(out: str | os.PathLike | None) -> None:
+    """Check an output folder before any computing: it is a folder or can be made one, and
+    it can be written. Raises :class:`OutputPlaceError` naming the problem."""
+    if out is None:
+        return
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputPlaceError(f"--out {out} is a file, not a folder; name a folder for the "
+                               "results")
+    place = out
+    while not place.exists():  # the nearest existing folder is where it will be made
+        if place.parent == place:
+            break
+        place = place.parent
+    if place.exists() and not place.is_dir():
+        raise OutputPlaceError(f"--out {out}: {place} is a file, so no folder can be made "
+                               "there")
+    if place.exists() and not os.access(place, os.W_OK | os.X_OK):
+        raise OutputPlaceError(f"--out {out}: no permission to write in {place}")
+
+
 def write_atomic(path: str | os.PathLike, write_fn: Callable[[str], Any]) -> Path:
     """Write ``path`` atomically: ``write_fn(tmp_path)`` writes the content to a temporary file.
 
@@ -52,9 +92,19 @@ def write_atomic(path: str | os.PathLike, write_fn: Callable[[str], Any]) -> Pat
     """
     dest = Path(path)
     if dest.is_dir():
-        raise IsADirectoryError(f"{dest}: is a directory, cannot write a file there")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent)
+        raise OutputPlaceError(f"cannot write {dest}: it is a folder; remove it or choose "
+                               "another output folder")
+    for inp in _PROTECTED:  # the inputs of the running command (protect_inputs)
+        refuse_overwrite_input(dest, [inp])
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputPlaceError(f"cannot create the folder {dest.parent}: "
+                               f"{exc.strerror or exc}") from exc
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent)
+    except OSError as exc:
+        raise OutputPlaceError(f"cannot write in {dest.parent}: {exc.strerror or exc}") from exc
     os.close(fd)
     try:
         write_fn(tmp)
