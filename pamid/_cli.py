@@ -4,7 +4,8 @@
 Bad input ends with a one-line message that names the file, column and row, and exit code 2;
 no traceback. Exit codes: 0 done; 1 a fit that did not converge; 2 bad input or a bad output
 place; 3 an internal failure — out of memory, or a defect — told in one line
-(``PAMID_DEBUG=1`` shows the traceback instead); 130 interrupted; 141 stdout closed early
+(``PAMID_DEBUG=1`` shows the traceback instead); 130 interrupted; 143 terminated
+(SIGTERM: temporary files removed); 141 stdout closed early
 (``pamid fit --json | head``), silently (:mod:`pamid._commands.failure`). ``--json``
 prints exactly one JSON object on stdout; warnings and progress go to stderr. Compiled
 code is cached on disk (``PAMID_CACHE_DIR``, default ``~/.cache/pamid/jax``), so the second
@@ -314,6 +315,7 @@ def main(argv: list[str] | None = None) -> int:
     from ._fit import _export_cache
 
     exporting = _export_cache.directory()
+    sigterm = failure.catch_sigterm()
     try:
         # Before any computing: the output place can be written, and no output of this run
         # can replace one of its input files (every writer of pamid._io checks).
@@ -337,6 +339,9 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `pamid fit --json | head -c 1`: the reader has what it wanted
         failure.silence_stdout()
         return failure.EXIT_BROKEN_PIPE
+    except failure.Terminated:  # writers have removed their temporary files on the way out
+        print("pamid: terminated", file=sys.stderr)
+        return failure.EXIT_TERMINATED
     except KeyboardInterrupt:
         if failure.debugging():
             raise
@@ -350,6 +355,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:  # a caller in the same process (a test, a notebook) gets its setting back
         _export_cache.enable(exporting)
         _io.protect_inputs([])
+        failure.restore_sigterm(sigterm)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -74,3 +74,29 @@ def test_an_output_file_that_is_a_folder_is_one_line(tmp_path, capsys):
     code = main(["fit", str(BUNDLED), "--out", str(tmp_path), "--intervals", "wald"])
     assert code == 2
     assert "it is a folder" in _one_error_line(capsys)
+
+
+def test_sigterm_while_writing_leaves_no_temporary_files(tmp_path, pamid_cli):
+    """A kill during plotting left hidden 0-byte .fit_M1.png.XXXX.tmp files behind."""
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    many = tmp_path / "many.csv"
+    frame = __import__("pandas").read_csv(BUNDLED)
+    frames = [frame.assign(muscle=f"M{i}") for i in range(40)]  # 81 plots: seconds
+    __import__("pandas").concat(frames).to_csv(many, index=False)
+    pamid_cli(["fit", many, "--intervals", "wald", "--json"])  # fill the compile cache
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pamid._cli", "fit", str(many), "--intervals", "wald",
+         "--max-plots", "40", "--out", str(out)], stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "JAX_PLATFORMS": "cpu"})
+    for line in proc.stderr:  # wait until it writes
+        if "writing plots" in line:
+            break
+    proc.send_signal(signal.SIGTERM)
+    rest = proc.stderr.read()
+    assert proc.wait(timeout=120) == 143, rest
+    assert "pamid: terminated" in rest and "Traceback" not in rest
+    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]

@@ -3,7 +3,8 @@
 Exit codes of every command: 0 done; 1 a fit that did not converge (reported, not dropped);
 2 bad input or a bad output place (one line naming the file, column and row); 3 an internal
 failure: out of memory, or a defect in pamid (one line, never a traceback; ``PAMID_DEBUG=1``
-re-raises it); 130 interrupted (Ctrl-C); 141 stdout closed early (``pamid fit --json | head``:
+re-raises it); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM; the writers' temporary
+files are removed); 141 stdout closed early (``pamid fit --json | head``:
 128 + SIGPIPE, what a shell reports for a program ended by a closed pipe), with nothing
 printed.
 """
@@ -11,11 +12,36 @@ printed.
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 
 EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived: raised in the main thread so that every ``finally`` and every
+    writer's clean-up runs (no half-written temporary files are left behind)."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated
+
+
+def catch_sigterm():
+    """Turn SIGTERM into :class:`Terminated` for the running command; returns the previous
+    handler (None outside the main thread, where no handler can be set)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+def restore_sigterm(previous) -> None:
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
 #: Longest message quoted from an exception (XLA's run to many lines).
 MAX_QUOTE = 300
 
