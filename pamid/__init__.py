@@ -85,6 +85,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "JointDecayFit": ("._dynamics._joint_fit", "JointDecayFit"),
     "fit_joint_decays": ("._dynamics._joint_fit", "fit_joint_decays"),
     "BenchDataError": ("._errors", "BenchDataError"),
+    "UntrustedResultError": ("._errors", "UntrustedResultError"),
     "FitResult": ("._fit._api", "FitResult"),
     "bench_to_fit_data": ("._fit._api", "bench_to_fit_data"),
     "fit_least_squares": ("._fit._api", "fit_least_squares"),
@@ -264,6 +265,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._dynamics._joint_fit import JointDecayFit as JointDecayFit
     from ._dynamics._joint_fit import fit_joint_decays as fit_joint_decays
     from ._errors import BenchDataError as BenchDataError
+    from ._errors import UntrustedResultError as UntrustedResultError
     from ._fit._api import FitResult as FitResult
     from ._fit._api import bench_to_fit_data as bench_to_fit_data
     from ._fit._api import fit_least_squares as fit_least_squares

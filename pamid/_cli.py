@@ -60,6 +60,8 @@ def _format_table(result, published=None) -> str:
             f"{head}: n = {result.n[i]}, RMSE = {result.rmse_N[i]:.4g} N, "
             f"R = {result.r[i]:.6f}, {status} ({result.n_steps[i]} steps, {result.solver})"
         )
+        if result.message(i):
+            lines.append(f"  why: {result.message(i)}")
         cols = ["constant", "unit", "value", "95% low", "95% high"]
         if result.ci95_profile is not None:
             cols += ["profile low", "profile high"]
@@ -311,7 +313,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     from . import _io
     from ._commands import failure
-    from ._errors import BenchDataError
+    from ._errors import BenchDataError, UntrustedResultError
     from ._fit import _export_cache
 
     exporting = _export_cache.directory()
@@ -336,6 +338,11 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"pamid: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except UntrustedResultError as exc:  # exit 1, as a fit that did not converge
+        print(f"pamid: error: {exc}", file=sys.stderr)
+        if getattr(args, "json", False):  # --json: still exactly one JSON object
+            print(json.dumps({"status": "not_trustworthy", "message": str(exc)}))
+        return 1
     except BrokenPipeError:  # `pamid fit --json | head -c 1`: the reader has what it wanted
         failure.silence_stdout()
         return failure.EXIT_BROKEN_PIPE

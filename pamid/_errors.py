@@ -36,3 +36,10 @@ class BenchDataError(ValueError):
                 at = f"sheet '{sheet}', cell {cell}" if sheet is not None else f"cell {cell}"
             where.append(f"row {row}" + (f" ({at})" if at else ""))
         super().__init__(": ".join([", ".join(where), message]))
+
+
+class UntrustedResultError(Exception):
+    """A result that could be computed but not trusted (a diagnosis of a fit whose
+    constants the data do not determine, say). The message says why; the command-line
+    interface prints it in one line and exits with code 1, as for a fit that did not
+    converge."""

@@ -262,3 +262,18 @@ def test_too_few_rows_for_a_diagnosis_is_said_not_crashed(tmp_path):
     path.write_text("pressure_kPa,force_N,contraction_pct\n100,5,1\n175,5,1\n")
     with pytest.raises(pamid.BenchDataError, match="needs at least 8 rows per muscle"):
         diagnose(path)
+
+
+def test_a_baseline_the_data_cannot_determine_is_not_diagnosed(tmp_path):
+    """One pressure level: the fit says NOT CONVERGED, and diagnose printed a residual RMSE
+    of 4e-14 with nothing unexplained (exit 0). Now it says why and refuses (exit 1)."""
+    path = tmp_path / "one_pressure.csv"
+    rng = np.random.default_rng(0)
+    k = np.arange(20.0)
+    pd.DataFrame({"pressure_kPa": 300.0, "force_N": 800 - 30 * k + rng.normal(0, 1, 20),
+                  "contraction_pct": k}).to_csv(path, index=False)
+    with pytest.raises(pamid.UntrustedResultError, match="cannot determine all 6 constants"):
+        diagnose(path)
+    from pamid._cli import main
+
+    assert main(["diagnose", str(path), "--json"]) == 1

@@ -275,3 +275,16 @@ def test_to_dict_writes_every_number_as_the_element_wise_conversion(small_bench)
             assert entry["ci95"] == _pair(fit.ci95[i, j])
             assert entry["ci95_profile"] == _pair(fit.ci95_profile[i, j])
             assert all(type(v) in (float, type(None)) for v in entry["ci95"] + [entry["se"]])
+
+
+@pytest.mark.parametrize(("rows", "why"), [
+    ("".join(f"{100 * (1 + k % 3)},{800 - 30 * k},{k}\n" for k in range(5)), "too few rows: 5"),
+    ("300,500,5\n" * 20, "cannot determine all 6 constants"),
+])
+def test_a_fit_that_cannot_be_trusted_says_why(tmp_path, rows, why):
+    path = tmp_path / "bad.csv"
+    path.write_text("pressure_kPa,force_N,contraction_pct\n" + rows)
+    fit = pamid.fit_least_squares(pamid.load_bench(path))
+    assert not fit.converged[0]
+    assert why in fit.message(0)
+    assert why in fit.to_dict()["muscles"][0]["message"]

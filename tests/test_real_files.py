@@ -37,14 +37,16 @@ def test_fit_of_the_real_isometric_file_with_plots(tmp_path, pamid_cli):
 
 def test_diagnose_of_the_real_isometric_file(tmp_path, pamid_cli):
     # A subsample of whole curves keeps the suite's time (the whole file: about 2 minutes,
-    # 1.2 GB; benchmarks/README.md); the file is read as it comes.
+    # 1.2 GB; benchmarks/README.md); the file is read as it comes. Smaller subsamples
+    # (8,000 or 16,000 rows) leave a muscle whose six constants the curves kept cannot
+    # determine, and diagnose then refuses it (exit 1).
     out = tmp_path / "diag"
-    proc = pamid_cli(["diagnose", str(AARL), "--json", "--max-rows", "8000", "--out", str(out)])
+    proc = pamid_cli(["diagnose", str(AARL), "--json", "--max-rows", "24000", "--out", str(out)])
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     doc = json.loads(proc.stdout)
     assert doc["rows_total"] == 61515
-    assert 0 < doc["rows_used"] <= 8000
+    assert 0 < doc["rows_used"] <= 24000
     assert "whole curves" in doc["subsample"]
     assert doc["rmse_after"] <= doc["rmse_before"]
     for name in ("diagnosis.json", "report.txt", "residuals_before_after.png",

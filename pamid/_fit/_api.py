@@ -48,6 +48,11 @@ class FitResult:
     profile_ok: np.ndarray | None = None
     bootstrap_converged: np.ndarray | None = None
     spec: ModelSpec | None = None
+    messages: tuple[str | None, ...] = ()  # per muscle: why it did not converge, else None
+
+    def message(self, i: int) -> str | None:
+        """Why muscle ``i`` is not reported as converged (None when it is)."""
+        return self.messages[i] if i < len(self.messages) else None
 
     @property
     def n_muscles(self) -> int:
@@ -86,6 +91,7 @@ class FitResult:
                     "rmse_N": rmse[i],
                     "r": r[i],
                     "converged": converged[i],
+                    "message": self.message(i),
                     "params": params,
                 }
             )
@@ -97,6 +103,30 @@ class FitResult:
             "interval": "wald-t",
             "muscles": muscles,
         }
+
+
+def _reasons(spec, n, solver_ok, full_rank, se, converged, steps) -> tuple[str | None, ...]:
+    """Per muscle, why a fit is not reported as converged, in words (None where it is)."""
+    p = spec.n_params
+    out = []
+    for i in range(len(n)):
+        if converged[i]:
+            out.append(None)
+        elif n[i] <= p:
+            out.append(f"too few rows: {int(n[i])} for the {p} constants of {spec.source} "
+                       f"(at least {p + 1} are needed to estimate them and their error)")
+        elif not full_rank[i]:
+            out.append(f"the data cannot determine all {p} constants of {spec.source} "
+                       "(rank-deficient Jacobian): too few distinct pressures or "
+                       "contractions for this model, or rows that repeat one point")
+        elif not solver_ok[i]:
+            out.append(f"the solver stopped after {int(steps[i])} steps without meeting "
+                       "its tolerance; the constants shown are its last accepted point")
+        else:
+            bad = [spec.param_names[j] for j in np.flatnonzero(~np.isfinite(se[i]))]
+            out.append(f"no finite standard error for {', '.join(bad)}: those constants "
+                       "are not determined by the data")
+    return tuple(out)
 
 
 def _json_values(a) -> list:
@@ -178,7 +208,10 @@ def fit_least_squares(
     se, lo, hi, s2, dof = _intervals.wald(theta, jtj_inv, sse, n, level)
     # A fit whose constants are not all determined by the data (rank-deficient Jacobian, or
     # no degrees of freedom left) is not reported as converged, whatever the solver says.
+    solver_ok = np.asarray(converged, dtype=bool)
     converged = converged & full_rank & np.all(np.isfinite(se), axis=-1)
+    messages = _reasons(spec, np.asarray(n), solver_ok, np.asarray(full_rank),
+                        np.asarray(se), np.asarray(converged), np.asarray(steps))
 
     ci_profile = profile_ok = None
     if "profile" in intervals:
@@ -214,4 +247,5 @@ def fit_least_squares(
         profile_ok=profile_ok,
         bootstrap_converged=boot_ok,
         spec=spec,
+        messages=messages,
     )

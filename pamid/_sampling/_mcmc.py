@@ -408,6 +408,8 @@ class McmcResult:
                 f"rmse_{unit}": _num(self.rmse_N[i]),
                 "r": _num(self.r[i]),
                 "converged": bool(self.converged[i]),
+                # why the least-squares start is not trusted, as `pamid fit` says it
+                "message": self.ls.message(i) if self.ls is not None else None,
                 "params": entries,
                 f"sigma_{unit}": sigma,
                 "sampling": {
