@@ -225,6 +225,8 @@ def fit_least_squares(
         blo, bhi, _, boot_ok = _intervals.bootstrap(spec, data, theta, key, n_bootstrap, level)
         ci_boot = np.stack([blo, bhi], axis=-1)
 
+    with np.errstate(invalid="ignore"):  # NaN where the data do not determine a constant
+        covariance = s2[:, None, None] * jtj_inv
     return FitResult(
         model=spec.name,
         param_names=spec.param_names,
@@ -235,7 +237,7 @@ def fit_least_squares(
         ci95=np.stack([lo, hi], axis=-1),
         ci95_profile=ci_profile,
         ci95_bootstrap=ci_boot,
-        covariance=s2[:, None, None] * jtj_inv,
+        covariance=covariance,
         n=n.astype(int),
         dof=dof,
         sse=sse,

@@ -39,7 +39,8 @@ def wald(theta, jtj_inv, sse, n, level: float = 0.95):
     n_params = theta.shape[-1]
     dof = n - n_params
     s2 = np.where(dof > 0, sse / np.maximum(dof, 1), np.nan)
-    se = np.sqrt(s2[:, None] * np.diagonal(jtj_inv, axis1=-2, axis2=-1))
+    with np.errstate(invalid="ignore"):  # undetermined constants: NaN, said in the message
+        se = np.sqrt(s2[:, None] * np.diagonal(jtj_inv, axis1=-2, axis2=-1))
     t = t_critical(dof, level)[:, None]
     return se, theta - t * se, theta + t * se, s2, dof
 
@@ -233,7 +234,8 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     if jtj_inv is None:
         cov = np.eye(theta.shape[-1]) * (np.asarray(se) ** 2)[..., None]
     else:
-        cov = np.asarray(s2)[:, None, None] * np.asarray(jtj_inv)
+        with np.errstate(invalid="ignore"):  # NaN for undetermined constants (no interval)
+            cov = np.asarray(s2)[:, None, None] * np.asarray(jtj_inv)
     ends, ok = map_lanes(
         lambda *a: _profile_ends(spec, *a, max_steps=max_steps, tol=tol,
                                  max_jump=PROFILE_MAX_JUMP, check=check),
