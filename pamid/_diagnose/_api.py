@@ -246,19 +246,18 @@ def _check_enough_rows(bench, spec) -> None:
         )
 
 
-def _check_baseline(bench, spec) -> None:
+def _check_baseline(bench, spec, baseline) -> None:
     """The residual of a fit whose constants the data do not determine says nothing about
-    missing effects: such a muscle is refused with the fit's own reason."""
+    missing effects: such a muscle is refused with the fit's own reason (``baseline``, the
+    diagnosis's own fit of the model alone)."""
     from .._errors import UntrustedResultError
-    from .._fit._api import fit_least_squares
 
-    fit = fit_least_squares(bench, spec, intervals=("wald",))
     for i, muscle in enumerate(bench.muscles):
-        if not fit.converged[i]:
+        if not baseline.converged[i]:
             who = f"muscle '{muscle}'" if bench.has_muscle_column else "the data"
             raise UntrustedResultError(
                 f"{bench.path}: the baseline {spec.source} fit of {who} is not trustworthy "
-                f"({fit.message(i)}); a diagnosis of its residual would mean nothing")
+                f"({baseline.message(i)}); a diagnosis of its residual would mean nothing")
 
 
 def _diagnose_bench(bench, model: str, n_folds: int, progress,
@@ -275,8 +274,8 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
                      "(--max-rows)")
     spec = get_model(model, bench.frame)
     _check_enough_rows(bench, spec)
-    _check_baseline(bench, spec)
     problem = StaticProblem(bench, spec, n_folds=n_folds)
+    _check_baseline(bench, spec, problem.baseline)
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
                             progress=progress)
     base, final = result["baseline"], result["final"]

@@ -39,8 +39,8 @@ import numpy as np
 import pandas as pd
 
 from .._fit import _export_cache
+from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
-from .._fit._least_squares import solve
 from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
@@ -156,9 +156,12 @@ class StaticProblem:
         self.curve_used = np.zeros((m, self.n_curves), bool)
         for i in range(m):
             self.curve_used[i, np.unique(curve[i][curve[i] >= 0])] = True
-        theta, ok, _ = solve(spec, self.data)
-        self.theta0 = theta
-        self.baseline_converged = ok
+        # The baseline: the model alone, with its statistics, so that a fit the data cannot
+        # determine is known (and said why) before any candidate is refitted on top of it.
+        self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
+                                          muscles=tuple(bench.muscles))
+        self.theta0 = self.baseline.theta
+        self.baseline_converged = self.baseline.converged
         self.l0_mm = [bench.l0_mm.get(m_id) for m_id in bench.muscles]
 
     # -- covariates and features ------------------------------------------------------------
