@@ -63,6 +63,8 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "deflection_test_stiffness": ("._data._virtual_joint", "deflection_test_stiffness"),
     "simulate_deflection_test": ("._data._virtual_joint", "simulate_deflection_test"),
     "simulate_joint_sweep": ("._data._virtual_joint", "simulate_joint_sweep"),
+    "ForceModel": ("._models._protocol", "ForceModel"),
+    "ModelDefinitionError": ("._fit._spec", "ModelDefinitionError"),
     "Diagnosis": ("._diagnose._api", "Diagnosis"),
     "diagnose": ("._diagnose._api", "diagnose"),
     "DECAY_EFFECTS": ("._dynamics._coulomb", "DECAY_EFFECTS"),
@@ -243,6 +245,8 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
     from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
     from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
+    from ._models._protocol import ForceModel as ForceModel
+    from ._fit._spec import ModelDefinitionError as ModelDefinitionError
     from ._diagnose._api import Diagnosis as Diagnosis
     from ._diagnose._api import diagnose as diagnose
     from ._dynamics._coulomb import DECAY_EFFECTS as DECAY_EFFECTS

@@ -129,7 +129,10 @@ def _cmd_fit(args) -> int:
 
     quiet = args.json
     t0 = time.perf_counter()
+    from ._commands._model import check_model
     from ._commands._reading import reading_options
+
+    check_model(args.model)  # a typo or a broken model file: one line, before reading data
 
     bench = load_bench(args.data, **reading_options(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
@@ -269,9 +272,9 @@ def _parser() -> argparse.ArgumentParser:
                          help="fit a static force model to bench data (CSV, Parquet or .xlsx)")
     fit.add_argument("data", help="bench file: pressure_kPa|bar|Pa|psi, force_N, contraction_pct "
                                   "or length_mm (+ l0_mm), optional muscle, trial, direction, …")
-    fit.add_argument("--model", default="sarosi", choices=["sarosi", "cullinan"],
-                     help="force model: sarosi (Sárosi eq. 2.1; p in bar, κ in %%) or cullinan "
-                          "(Cullinan eq. 3; N, kPa, mm, s; G too when velocity_mm_s is given)")
+    from ._commands._model import add_model_argument
+
+    add_model_argument(fit)
     fit.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     fit.add_argument("--out", help="folder for plots (PNG) and fit.json")
     fit.add_argument("--solver", default="gauss-newton",

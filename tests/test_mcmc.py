@@ -153,10 +153,16 @@ def test_default_priors_follow_the_spec():
     assert dynamic.lower[5] == 0.0 and static.lower[1] == 0.0  # G ≥ 0, B > 0
     desc = default_prior(SAROSI).describe()
     assert "condition" in desc and "sigma" in desc and "a3" in desc
-    with pytest.raises(ValueError, match="no default prior"):
-        import dataclasses
+    import dataclasses
 
-        default_prior(dataclasses.replace(SAROSI, name="new-model"))
+    with pytest.raises(ValueError, match="no default prior"):
+        default_prior(dataclasses.replace(SAROSI, name="new-model", model_class=None))
+    # A ForceModel without a documented prior: flat, within its bounds where it has them.
+    flat = default_prior(dataclasses.replace(
+        SAROSI, name="new-model", bounds=((-np.inf,) * 2 + (-5.0,) + (-np.inf,) * 3,
+                                          (np.inf,) * 2 + (0.0,) + (np.inf,) * 3)))
+    assert flat.names == SAROSI.param_names and all(np.isinf(flat.scale))
+    assert (flat.lower[2], flat.upper[2]) == (-5.0, 0.0) and np.isinf(flat.lower[0])
     with pytest.raises(ValueError, match="scale must be positive"):
         Prior(names=("a",), loc=(0.0,), scale=(0.0,), lower=(-1.0,), upper=(1.0,))
 

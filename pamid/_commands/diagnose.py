@@ -27,8 +27,9 @@ def register(subparsers) -> None:
     )
     diag.add_argument("data", help="bench file (CSV, Parquet or .xlsx) or decay file (time_s, "
                                    "angle_rad|angle_deg, optional trial)")
-    diag.add_argument("--model", default="sarosi", choices=["sarosi", "cullinan"],
-                      help="static model for bench files (default sarosi)")
+    from ._model import add_model_argument
+
+    add_model_argument(diag)
     diag.add_argument("--inertia", type=float, dest="inertia_kg_m2", metavar="J",
                       help="moment of inertia of the arm in kg·m² (decay files)")
     diag.add_argument("--folds", type=int, default=5,
@@ -57,6 +58,9 @@ def cmd_diagnose(args) -> int:
     def progress(msg: str) -> None:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
+    from ._model import check_model
+
+    check_model(args.model)  # a typo or a broken model file: one line, before reading data
     progress(f"diagnosing {args.data}")
     from ._reading import reading_options
 

@@ -155,7 +155,7 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
     ``bench.curves`` (:func:`pamid._data._curves.find_curves`); ``curves=False`` puts
     every sample of a muscle in curve 0, for fits that resample nothing.
     """
-    spec = get_model(model, bench.frame) if isinstance(model, str) else model
+    spec = get_model(model, bench.frame)
     frame = bench.frame
     codes = pd.factorize(frame["muscle"], sort=False)[0]
     x = spec.x_from_frame(frame, bench.path)
@@ -193,7 +193,7 @@ def fit_least_squares(
         level: coverage of the intervals (0.95).
     """
     frame = data.frame if isinstance(data, BenchData) else None
-    spec = get_model(model, frame) if isinstance(model, str) else model
+    spec = get_model(model, frame)
     unknown = set(intervals) - set(INTERVAL_KINDS)
     if unknown:
         raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")

@@ -175,8 +175,9 @@ def _profile_ends(spec, theta_hat, cov, tcrit, s2, sse_min, x, y, w, max_steps, 
     )
     sse_end = (sse_min + tcrit**2 * s2)[:, None]  # (M, 1)
     sse_tol = check[1] * (tcrit**2 * s2)[:, None]
-    if spec.name == "sarosi" and spec.n_params == 6:
-        derivatives, sse_only = _sarosi_derivatives(x, y, w)
+    fast = spec.fast_path
+    if fast is not None and fast.profile_derivatives is not None:
+        derivatives, sse_only = fast.profile_derivatives(x, y, w)
     else:
         derivatives, sse_only = _generic_derivatives(spec, x, y, w)
     derivatives = jax.vmap(derivatives, in_axes=1, out_axes=1)  # every end of a muscle

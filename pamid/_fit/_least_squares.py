@@ -19,9 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._batch import FitData, map_lanes
-from ._gauss_newton import CPU_CHUNK_LANES, sarosi_gauss_newton, sarosi_statistics
-from ._spec import SAROSI, ModelSpec, builtin_key
-from ._variable_projection import sarosi_variable_projection
+from ._gauss_newton import CPU_CHUNK_LANES
+from ._spec import ModelSpec, builtin_key
 
 SOLVERS = (
     "gauss-newton",
@@ -48,7 +47,7 @@ def _optx_solver(name, rtol, atol):
 def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
     """Solve every lane from its start; returns theta, success flag and step count per lane."""
     if solver == "variable-projection":
-        theta, _, width = sarosi_variable_projection(x, y, w, n_refine=max_steps)
+        theta, _, width = spec.fast_path.variable_projection(x, y, w, n_refine=max_steps)
         # Converged: the bracket around a3 has shrunk to the tolerance.
         ok = jnp.all(jnp.isfinite(theta), axis=-1) & (width < jnp.maximum(rtol, 1e-8))
         return theta, ok, jnp.full(theta.shape[0], max_steps)
@@ -153,18 +152,21 @@ def solve(
     """
     if solver not in SOLVERS:
         raise ValueError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
-    if solver == "variable-projection" and spec.name != "sarosi":
-        raise ValueError("variable projection is implemented for the Sárosi model only")
-    if solver == "gauss-newton" and spec.name == "sarosi" and bounds is None:
-        # The written-out Gauss–Newton of ``_gauss_newton.py``, with its own start.
+    fast = spec.fast_path
+    if solver == "variable-projection" and (fast is None or fast.variable_projection is None):
+        raise ValueError(f"variable projection is written out for the Sárosi model only, "
+                         f"not for {spec.name}; use the gauss-newton or levenberg-marquardt "
+                         "solver")
+    if solver == "gauss-newton" and fast is not None and bounds is None:
+        # The model's registered written-out Gauss–Newton, with its own start.
         start = () if theta0 is None else (jnp.asarray(theta0, dtype=jnp.float64),)
         theta, ok, steps = map_lanes(
-            lambda x, y, w, *t0: sarosi_gauss_newton(
+            lambda x, y, w, *t0: fast.gauss_newton(
                 x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
             ),
             data.x, data.y, data.w, *start,
             chunk=_sarosi_chunk(),
-            cache_key=("sarosi_gauss_newton", max_steps, rtol, atol),
+            cache_key=(f"{fast.key}_gauss_newton", max_steps, rtol, atol),
         )
         theta = np.asarray(theta)
         ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
@@ -213,11 +215,11 @@ def statistics(spec: ModelSpec, theta, data: FitData):
     samples; 10,000 muscles of 300 samples: 21 ms, against 128 ms for a Jacobian, QR and SVD
     per lane, the same inverse to 1e-10: ``benchmarks/profile_pieces.py --only-cores``);
     for other models, the Jacobian by ``jax.jacfwd`` and an SVD."""
-    if spec is SAROSI:
+    if spec.fast_path is not None:
         out = map_lanes(
-            sarosi_statistics, jnp.asarray(theta), data.x, data.y, data.w,
+            spec.fast_path.statistics, jnp.asarray(theta), data.x, data.y, data.w,
             chunk=_sarosi_chunk(),
-            cache_key=("sarosi_statistics",),
+            cache_key=(f"{spec.fast_path.key}_statistics",),
         )
         return tuple(np.asarray(a) for a in out)
     out = map_lanes(

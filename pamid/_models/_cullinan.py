@@ -20,9 +20,10 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
+
+from ._protocol import ForceModel
 
 CULLINAN_NAMES: tuple[str, ...] = ("A", "B", "C", "D", "E", "G")
 CULLINAN_UNITS: dict[str, str] = {
@@ -35,8 +36,8 @@ CULLINAN_UNITS: dict[str, str] = {
 }
 
 
-class Cullinan(eqx.Module):
-    """Constants of Cullinan eq. 3 in N, kPa, mm and s (see the module docstring).
+class Cullinan(ForceModel):
+    """Cullinan eq. 3: F = A + B·P′ − (C + D·P′ + E·y)·y − G·ẏ (N, kPa, mm, s).
 
     Fields may carry leading batch axes, one set per muscle. ``G`` defaults to 0 (a static
     fit determines A–E only; G comes from dynamic data).
@@ -50,6 +51,10 @@ class Cullinan(eqx.Module):
     G: Float[Array, "..."]
 
     names: ClassVar[tuple[str, ...]] = CULLINAN_NAMES
+    units: ClassVar[dict[str, str]] = CULLINAN_UNITS
+    inputs: ClassVar[tuple[str, ...]] = ("pressure_kPa", "contraction_mm", "velocity_mm_s")
+    name: ClassVar[str] = "cullinan"
+    source: ClassVar[str] = "Cullinan eq. 3"
 
     def __init__(self, A, B, C, D, E, G=0.0):  # noqa: N803 (the paper's names)
         self.A, self.B, self.C = jnp.asarray(A), jnp.asarray(B), jnp.asarray(C)
@@ -65,6 +70,11 @@ class Cullinan(eqx.Module):
     def to_vector(self, with_g: bool = True) -> Float[Array, "... k"]:
         fields = [self.A, self.B, self.C, self.D, self.E] + ([self.G] if with_g else [])
         return jnp.stack(jnp.broadcast_arrays(*fields), axis=-1)
+
+    def __call__(self, pressure_kPa: ArrayLike, contraction_mm: ArrayLike,
+                 velocity_mm_s: ArrayLike = 0.0):
+        """The force in N, eq. 3 (:func:`cullinan_force`)."""
+        return cullinan_force(self, pressure_kPa, contraction_mm, velocity_mm_s)
 
 
 def cullinan_force(

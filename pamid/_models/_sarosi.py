@@ -13,10 +13,11 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
+
+from ._protocol import ForceModel
 
 PARAM_NAMES: tuple[str, ...] = ("a1", "a2", "a3", "a4", "a5", "a6")
 PARAM_UNITS: dict[str, str] = {
@@ -29,11 +30,12 @@ PARAM_UNITS: dict[str, str] = {
 }
 
 
-class Sarosi(eqx.Module):
-    """Constants of Sárosi eq. 2.1 (p in bar, κ in %, F in N).
+class Sarosi(ForceModel):
+    """Sárosi eq. 2.1: F = (a1·p + a2)·exp(a3·κ) + a4·κ·p + a5·p + a6 (p in bar, κ in %).
 
     A small pytree: every field may carry leading batch dimensions (one set per muscle),
-    and every function below works on it under ``jit``, ``vmap`` and ``grad``.
+    and every function below works on it under ``jit``, ``vmap`` and ``grad``. Fitted by its
+    registered written-out kernels (``pamid._fit._gauss_newton``), with its own start.
     """
 
     a1: Float[Array, "..."]
@@ -44,6 +46,10 @@ class Sarosi(eqx.Module):
     a6: Float[Array, "..."]
 
     names: ClassVar[tuple[str, ...]] = PARAM_NAMES
+    units: ClassVar[dict[str, str]] = PARAM_UNITS
+    inputs: ClassVar[tuple[str, ...]] = ("pressure_bar", "contraction_pct")
+    name: ClassVar[str] = "sarosi"
+    source: ClassVar[str] = "Sárosi eq. 2.1"
 
     def __init__(self, a1, a2, a3, a4, a5, a6):
         self.a1, self.a2, self.a3 = jnp.asarray(a1), jnp.asarray(a2), jnp.asarray(a3)
@@ -58,6 +64,10 @@ class Sarosi(eqx.Module):
     def to_vector(self) -> Float[Array, "... 6"]:
         """The constants as a vector (a1, …, a6) in the last axis."""
         return jnp.stack([self.a1, self.a2, self.a3, self.a4, self.a5, self.a6], axis=-1)
+
+    def __call__(self, pressure_bar: ArrayLike, contraction_pct: ArrayLike):
+        """The force in N, eq. 2.1 (:func:`sarosi_force`)."""
+        return sarosi_force(self, pressure_bar, contraction_pct)
 
 
 def sarosi_force(

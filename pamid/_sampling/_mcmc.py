@@ -612,7 +612,7 @@ def fit_mcmc(
 
     t0 = time.perf_counter()
     frame = data.frame if isinstance(data, BenchData) else None
-    spec = get_model(model, frame) if isinstance(model, str) else model
+    spec = get_model(model, frame)
     prior = default_prior(spec) if prior is None else prior
     ndim = spec.n_params + 1
     _validate(n_walkers, ndim, thin, max_steps, min_steps, likelihood, sampler, nu)

@@ -162,6 +162,8 @@ _PRIORS = {"sarosi": SAROSI_PRIOR, "cullinan": CULLINAN_PRIOR}
 
 def default_prior(spec: ModelSpec) -> Prior:
     """The documented prior for a model, restricted to the constants its spec fits."""
+    if spec.name not in _PRIORS and spec.model_class is not None:
+        return model_prior(spec)
     try:
         full = _PRIORS[spec.name]
     except KeyError:
@@ -183,6 +185,32 @@ def default_prior(spec: ModelSpec) -> Prior:
         notes=pick(full.notes) if full.notes else (),
         condition=None, condition_note="",
     )
+
+
+def model_prior(spec: ModelSpec) -> Prior:
+    """The prior of a :class:`~pamid.ForceModel` without a documented one: flat on the
+    interval its ``prior`` declares for a constant, else flat within its physical ``bounds``,
+    else flat on the real line (improper: the data must determine that constant; the
+    posterior is proper when the least-squares fit identifies every constant)."""
+    declared = dict(spec.prior or {})
+    lower, upper = spec.bounds if spec.bounds is not None else (
+        (-_INF,) * spec.n_params, (_INF,) * spec.n_params)
+    lo, hi, notes = [], [], []
+    for j, name in enumerate(spec.param_names):
+        if name in declared:
+            a, b = (float(v) for v in declared[name])
+            notes.append("declared by the model")
+        elif math.isfinite(lower[j]) or math.isfinite(upper[j]):
+            a, b = lower[j], upper[j]
+            notes.append("the model's physical bounds")
+        else:
+            a, b = -_INF, _INF
+            notes.append("improper: the data alone determine it")
+        lo.append(a)
+        hi.append(b)
+    n = spec.n_params
+    return Prior(names=spec.param_names, loc=(0.0,) * n, scale=(_INF,) * n,
+                 lower=tuple(lo), upper=tuple(hi), notes=tuple(notes))
 
 
 def log_prior(prior: Prior, theta, log_sigma):

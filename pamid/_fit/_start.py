@@ -1,0 +1,140 @@
+"""Start values for any model: trial values of its nonlinear constants, the linear ones solved.
+
+A force law is usually linear in most of its constants (Sárosi eq. 2.1 in five of six,
+Cullinan eq. 3 in all). For a model ``F = f(θ, x)`` whose constants split into a linear set
+L (∂²f/∂θᵢ∂θⱼ = 0 for i, j in L) and the rest N, the least-squares problem in L for fixed N
+is linear and has one exact answer (variable projection; Golub & Pereyra 1973). The start is
+then a search over N alone: for each of a fixed, space-filling set of trial values of N (the
+model's defaults first, then a Halton sequence over ranges set by the bounds and defaults),
+L is solved and the residual sum of squares kept; the candidates are returned best first, so
+that a solver can be started from one or several of them.
+
+Which constants are linear is found once per model, from the second derivatives of the model
+at probe inputs (exact zeros under automatic differentiation), not declared by hand.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+#: Typical magnitude of each named input, for the probes that find the linear constants.
+_INPUT_SCALES = {"kPa": 300.0, "bar": 3.0, "MPa": 0.3, "Pa": 3e5, "pct": 10.0, "ratio": 0.1,
+                 "mm": 10.0, "m": 0.01, "mm_s": 10.0, "m_s": 0.01, "C": 25.0, "s": 10.0}
+#: Trial values of the nonlinear constants: 1 (the defaults) + this many per constant,
+#: capped at :data:`MAX_CANDIDATES`.
+CANDIDATES_PER_CONSTANT = 15
+MAX_CANDIDATES = 64
+#: Factor around a nonzero default, on a log scale, searched where no bounds are given.
+DEFAULT_SPAN = 10.0
+
+
+def _input_scale(name: str) -> float:
+    unit = name.split("_", 1)[1] if "_" in name else ""
+    return _INPUT_SCALES.get(unit, 1.0)
+
+
+def _fractions(n: int, offset: float) -> np.ndarray:
+    """``n`` well-spread numbers in (0, 1): a Weyl sequence (golden ratio)."""
+    golden = (math.sqrt(5.0) - 1.0) / 2.0
+    return (offset + golden * np.arange(1, n + 1)) % 1.0
+
+
+def probe_inputs(inputs: tuple[str, ...], n: int = 8) -> tuple:
+    """``n`` probe values of each named input, of its typical magnitude, all different."""
+    return tuple(
+        jnp.asarray(_input_scale(name) * (0.2 + 1.6 * _fractions(n, 0.1 * (i + 1))))
+        for i, name in enumerate(inputs)
+    )
+
+
+def linear_constants(predict, n_params: int, inputs: tuple[str, ...], reference) -> np.ndarray:
+    """Which constants the model is linear in, jointly: a boolean mask of length p.
+
+    The Hessian of the model in its constants is taken at ``reference`` (perturbed, so that
+    no constant sits at a special value such as 0) at eight probe inputs of typical
+    magnitude; constants with a zero second derivative are added one by one while every
+    cross derivative with those already taken is zero too.
+    """
+    probe = probe_inputs(inputs)
+    ref = np.asarray(reference, dtype=np.float64)
+    bump = _fractions(n_params, 0.37) - 0.5
+    theta = jnp.asarray(ref * (1.0 + 0.2 * bump) + 0.05 * bump)
+    hess = jax.jacfwd(jax.jacfwd(lambda th: predict(th, probe)))(theta)  # (n, p, p)
+    size = np.nanmax(np.abs(np.asarray(hess)), axis=0)
+    size = np.where(np.isfinite(size), size, np.inf)
+    zero = size <= 1e-12 * max(float(np.max(np.where(np.isfinite(size), size, 0.0))), 1e-300)
+    linear = np.zeros(n_params, dtype=bool)
+    for i in range(n_params):
+        if zero[i, i] and all(zero[i, j] for j in np.flatnonzero(linear)):
+            linear[i] = True
+    return linear
+
+
+def trial_values(defaults, lower, upper, nonlinear: np.ndarray) -> np.ndarray:
+    """Trial values of the constants, (K, p): the defaults first, then a Halton-like design
+    over each nonlinear constant's range (its bounds; else a factor of
+    :data:`DEFAULT_SPAN` around a nonzero default, on a log scale; else ±1 around 0).
+    Linear constants keep their defaults (the start solves them)."""
+    defaults = np.asarray(defaults, dtype=np.float64)
+    idx = np.flatnonzero(nonlinear)
+    k = min(1 + CANDIDATES_PER_CONSTANT * len(idx), MAX_CANDIDATES) if len(idx) else 1
+    out = np.tile(defaults, (k, 1))
+    for col, j in enumerate(idx):
+        u = _fractions(k - 1, 0.5 / (col + 2))  # a different sequence per constant
+        d, lo, hi = defaults[j], lower[j], upper[j]
+        if np.isfinite(lo) and np.isfinite(hi):
+            a, b = lo, hi
+        elif d != 0:
+            a, b = sorted((d / DEFAULT_SPAN, d * DEFAULT_SPAN))
+            a, b = max(a, lo), min(b, hi)
+        else:
+            a, b = max(-1.0, lo), min(1.0, hi)
+            if not np.isfinite(a):
+                a = b - 2.0
+            if not np.isfinite(b):
+                b = a + 2.0
+        if a > 0 and b / a > 20:
+            values = a * (b / a) ** u
+        elif b < 0 and a / b > 20:
+            values = b * (a / b) ** u
+        else:
+            values = a + (b - a) * u
+        out[1:, j] = values
+    return out
+
+
+def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower, upper):
+    """A batched start function ``(x, y, w) -> (theta (M, K, p), sse (M, K))``, candidates
+    sorted best first, each with its linear constants solved by weighted least squares
+    for the trial values of the others, then clipped into the bounds."""
+    lin = jnp.asarray(np.flatnonzero(linear))
+    trials = jnp.asarray(trials)
+    lower, upper = jnp.asarray(lower), jnp.asarray(upper)
+
+    def one_trial(theta, x, y, w):
+        if lin.size:
+            base = theta.at[lin].set(0.0)
+            f0 = predict(base, x)
+            g = jax.jacfwd(lambda b: predict(base.at[lin].set(b), x))(jnp.zeros(lin.size))
+            sw = jnp.sqrt(w)
+            a = sw[:, None] * g
+            # Columns scaled to unit length, then a least-squares solve that tolerates a
+            # rank-deficient design (a constant the data do not see stays at 0).
+            norm = jnp.sqrt(jnp.sum(a**2, axis=0))
+            scale = jnp.where(norm > 0, 1.0 / norm, 0.0)
+            beta, *_ = jnp.linalg.lstsq(a * scale, sw * (y - f0), rcond=1e-10)
+            theta = base.at[lin].set(beta * scale)
+        theta = jnp.clip(theta, lower, upper)
+        sse = jnp.sum(w * (predict(theta, x) - y) ** 2)
+        return theta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
+
+    def one_muscle(x, y, w):
+        theta, sse = jax.vmap(one_trial, in_axes=(0, None, None, None))(trials, x, y, w)
+        order = jnp.argsort(sse)
+        return theta[order], sse[order]
+
+    return jax.vmap(one_muscle)

@@ -1,0 +1,272 @@
+"""The public model protocol, pamid.ForceModel: a user's force law fits as written.
+
+The Quadratic of the issue is fitted from Python and from the command line (``--model
+file.py:Class``), by least squares and by MCMC; its constants are recovered on virtual data
+within their intervals; a nonlinear law starts by itself from far off; a model written
+wrong ends in one line that names the file and the line.
+"""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pandas as pd
+import pytest
+
+import pamid
+from pamid._fit._spec import CULLINAN, SAROSI, ModelDefinitionError, get_model, spec_from_model
+from pamid._fit._start import linear_constants
+
+QUADRATIC_FILE = '''
+import pamid
+
+class Quadratic(pamid.ForceModel):
+    c0: float = 0.0
+    c1: float = 1.0
+    c2: float = -10.0
+    c3: float = 0.0
+    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%", "c3": "N/(kPa*%)"}
+    inputs = ("pressure_kPa", "contraction_pct")
+
+    def __call__(self, pressure_kPa, contraction_pct):
+        return (self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
+                + self.c3 * pressure_kPa * contraction_pct)
+'''
+TRUE = {"c0": 5.0, "c1": 1.2, "c2": -12.0, "c3": 0.01}
+NOISE_N = 2.0
+
+
+class Quadratic(pamid.ForceModel):
+    c0: float = 0.0
+    c1: float = 1.0
+    c2: float = -10.0
+    c3: float = 0.0
+    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%", "c3": "N/(kPa*%)"}
+    inputs = ("pressure_kPa", "contraction_pct")
+
+    def __call__(self, pressure_kPa, contraction_pct):
+        return (self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
+                + self.c3 * pressure_kPa * contraction_pct)
+
+
+class Decaying(pamid.ForceModel):
+    """A saturating law: F = a·p·exp(b·κ) + c (a test model, two constants linear)."""
+
+    a: float = 1.0
+    b: float = -0.05
+    c: float = 0.0
+    units = {"a": "N/bar", "b": "1/%", "c": "N"}
+    inputs = ("pressure_bar", "contraction_pct")
+    bounds = {"b": (-2.0, 0.0)}
+
+    def __call__(self, pressure_bar, contraction_pct):
+        return self.a * pressure_bar * jnp.exp(self.b * contraction_pct) + self.c
+
+
+def _sweeps(model, n_muscles, rng, noise=NOISE_N):
+    """A bench frame of sweeps at five pressures, the force from ``model`` plus noise."""
+    rows = []
+    for m in range(n_muscles):
+        for p_kpa in (100.0, 200.0, 300.0, 400.0, 500.0):
+            kappa = np.linspace(0.0, 20.0, 30)
+            inputs = {"pressure_kPa": p_kpa, "pressure_bar": p_kpa / 100.0,
+                      "contraction_pct": kappa}
+            force = np.asarray(model(*(inputs[i] for i in type(model).inputs)))
+            force = force + rng.normal(0.0, noise, kappa.size)
+            rows += [(f"M{m}", p_kpa, k, f) for k, f in zip(kappa, force)]
+    return pd.DataFrame(rows, columns=["muscle", "pressure_kPa", "contraction_pct", "force_N"])
+
+
+def _load(frame, tmp_path):
+    path = tmp_path / "bench.csv"
+    frame.to_csv(path, index=False)
+    return pamid.load_bench(path)
+
+
+@pytest.fixture(scope="module")
+def quadratic_csv(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("quadratic")
+    (folder / "models.py").write_text(QUADRATIC_FILE)
+    frame = _sweeps(Quadratic(**TRUE), 2, np.random.default_rng(7))
+    frame.to_csv(folder / "bench.csv", index=False)
+    return folder
+
+
+def test_the_issue_file_fits_from_the_command_line(quadratic_csv, pamid_cli):
+    out = pamid_cli(["fit", quadratic_csv / "bench.csv", "--model",
+                     f"{quadratic_csv / 'models.py'}:Quadratic", "--json"])
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["model"] == "quadratic"
+    assert doc["units"] == {"force": "N", "pressure": "kPa", "contraction": "%"}
+    for muscle in doc["muscles"]:
+        assert muscle["converged"]
+        assert list(muscle["params"]) == ["c0", "c1", "c2", "c3"]
+        assert muscle["params"]["c3"]["unit"] == "N/(kPa*%)"
+        for name, value in TRUE.items():
+            lo, hi = muscle["params"][name]["ci95"]
+            assert lo < value < hi, (name, lo, value, hi)
+
+
+def test_the_issue_file_samples_by_mcmc_from_the_command_line(quadratic_csv, pamid_cli):
+    out = pamid_cli(["fit", quadratic_csv / "bench.csv", "--model",
+                     f"{quadratic_csv / 'models.py'}:Quadratic", "--method", "mcmc", "--json",
+                     "--seed", "3"])
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert set(doc["prior"]) == {"c0", "c1", "c2", "c3", "sigma"}
+    for muscle in doc["muscles"]:
+        for name, value in TRUE.items():
+            lo, hi = muscle["params"][name]["hdi95"]
+            assert lo < value < hi, (name, lo, value, hi)
+            # The posterior mean sits by the least-squares optimum (flat priors).
+            ls = muscle["params"][name]["ls"]
+            width = hi - lo
+            assert abs(muscle["params"][name]["value"] - ls["value"]) < 0.1 * width
+
+
+def test_wald_intervals_cover_the_true_constants_on_virtual_muscles(tmp_path):
+    """40 virtual muscles: each constant inside its 95 % interval about 95 % of the time."""
+    bench = _load(_sweeps(Quadratic(**TRUE), 40, np.random.default_rng(11)), tmp_path)
+    result = pamid.fit_least_squares(bench, Quadratic)
+    assert result.converged.all()
+    assert result.param_names == ("c0", "c1", "c2", "c3")
+    truth = np.array(list(TRUE.values()))
+    inside = (result.ci95[..., 0] < truth) & (truth < result.ci95[..., 1])
+    coverage = inside.mean(axis=0)
+    assert np.all(coverage >= 0.85), coverage  # binomial(40, 0.95): P(< 34) ≈ 0.2 %
+    # The least-squares answer of a linear model: the same as a direct solve.
+    f = bench.for_muscle("M0")
+    p, k = f["pressure_kPa"].to_numpy(), f["contraction_pct"].to_numpy()
+    design = np.column_stack([np.ones_like(p), p, k, p * k])
+    direct = np.linalg.lstsq(design, f["force_N"].to_numpy(), rcond=None)[0]
+    np.testing.assert_allclose(result.theta[0], direct, rtol=1e-9, atol=1e-9)
+
+
+def test_a_nonlinear_law_starts_by_itself_far_from_its_defaults(tmp_path):
+    truth = Decaying(a=300.0, b=-0.3, c=-40.0)  # defaults: a = 1, b = -0.05, c = 0
+    bench = _load(_sweeps(truth, 3, np.random.default_rng(5), noise=1.0), tmp_path)
+    result = pamid.fit_least_squares(bench, Decaying)
+    assert result.converged.all()
+    # At the global optimum: within 4 standard errors of the truth (a local optimum or a
+    # start left where it was would be hundreds of them away).
+    z = (result.theta - np.array([300.0, -0.3, -40.0])) / result.se
+    assert np.all(np.abs(z) < 4.0), z
+    assert result.spec.source.startswith("A saturating law")
+    assert result.spec.units == {"force": "N", "pressure": "bar", "contraction": "%"}
+
+
+def test_inputs_in_other_units_are_converted_exactly(tmp_path):
+    """pressure_bar is pressure_kPa / 100, bit for bit, as the Sárosi kernels need."""
+    bench = _load(_sweeps(Quadratic(**TRUE), 1, np.random.default_rng(1)), tmp_path)
+    x = SAROSI.x_from_frame(bench.frame)
+    assert np.array_equal(x[0], bench.frame["pressure_kPa"].to_numpy() / 100.0)
+
+
+def test_linear_constants_are_found_from_second_derivatives():
+    from pamid._models._sarosi import Sarosi
+
+    assert SAROSI.model_class is Sarosi and SAROSI.fast_path is not None
+    linear = linear_constants(SAROSI.predict, 6, ("pressure_bar", "contraction_pct"),
+                              [-4.0, 280.0, -0.3, -9.0, 300.0, -260.0])
+    assert linear.tolist() == [True, True, False, True, True, True]
+    linear = linear_constants(CULLINAN.predict, 5, ("pressure_kPa", "contraction_mm"),
+                              [0.0] * 5)
+    assert linear.all()
+    spec = get_model(Decaying)
+    assert linear_constants(spec.predict, 3, Decaying.inputs, [1.0, -0.05, 0.0]).tolist() == [
+        True, False, True]
+
+
+def test_builtin_models_are_force_models_like_any_other():
+    from pamid._models._cullinan import Cullinan
+    from pamid._models._sarosi import Sarosi, table_3_1
+
+    assert issubclass(Sarosi, pamid.ForceModel) and issubclass(Cullinan, pamid.ForceModel)
+    assert get_model(Sarosi) is SAROSI
+    model = table_3_1()
+    f = model(jnp.array([3.0]), jnp.array([10.0]))
+    np.testing.assert_allclose(f, SAROSI.predict(model.to_vector(), (3.0, 10.0)))
+    # Fields marked static are settings, not constants.
+
+    class WithSetting(pamid.ForceModel):
+        r0_mm: float = eqx.field(static=True, default=5.0)
+        k: float = 1.0
+        units = {"k": "N/(kPa*mm^2)"}
+        inputs = ("pressure_kPa",)
+
+        def __call__(self, pressure_kPa):
+            return self.k * pressure_kPa * self.r0_mm**2
+
+    spec = spec_from_model(WithSetting)
+    assert spec.param_names == ("k",)
+    np.testing.assert_allclose(spec.predict(jnp.array([2.0]), (jnp.array([10.0]),)), 500.0)
+
+
+@pytest.mark.parametrize("body, message", [
+    ("class A(pamid.ForceModel):\n    c: float = 1.0\n    inputs = ('pressure_kPa',)\n"
+     "    def __call__(self, p):\n        return self.c * p\n",
+     r"A\.units has no unit for c"),
+    ("class A(pamid.ForceModel)\n    c: float = 1.0\n",
+     r"models\.py, line 2: syntax error"),
+    ("class A(pamid.ForceModel):\n    c: float = 1.0\n    units = {'c': 'N'}\n"
+     "    inputs = ('pressure_kPa',)\n    def __call__(self, p):\n"
+     "        return self.c * not_defined\n",
+     r"models\.py, line 7: A\.__call__ failed on test inputs \(NameError"),
+    ("class A(pamid.ForceModel):\n    c: float = 1.0\n    units = {'c': 'N'}\n"
+     "    inputs = ('pressure_kPa',)\n    def __call__(self, p):\n        return self.c\n",
+     r"returned shape \(\) for inputs of shape \(8,\)"),
+    ("class B(pamid.ForceModel):\n    pass\n", r"no class 'A'; pamid\.ForceModel classes in it: B"),
+    ("class A:\n    pass\n", r"A is not a pamid\.ForceModel subclass"),
+    ("raise RuntimeError('boom')\n", r"models\.py, line 2: the model file failed to run"),
+])
+def test_a_model_written_wrong_ends_in_one_line(tmp_path, quadratic_csv, pamid_cli, body,
+                                                message):
+    (tmp_path / "models.py").write_text("import pamid\n" + body)
+    out = pamid_cli(["fit", quadratic_csv / "bench.csv", "--model",
+                     f"{tmp_path / 'models.py'}:A"])
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in out.stderr, out.stderr
+    import re
+
+    assert re.search(message, lines[0]), lines[0]
+
+
+def test_unknown_model_names_the_choices(quadratic_csv, pamid_cli):
+    out = pamid_cli(["fit", quadratic_csv / "bench.csv", "--model", "sarosy"])
+    assert out.returncode == 2
+    assert "unknown model 'sarosy'" in out.stderr and "sarosi" in out.stderr
+
+
+def test_a_nonlinear_constant_without_a_default_is_named(tmp_path):
+    class NoStart(pamid.ForceModel):
+        a: float
+        b: float
+        units = {"a": "N", "b": "1/kPa"}
+        inputs = ("pressure_kPa",)
+
+        def __call__(self, pressure_kPa):
+            return self.a * jnp.exp(self.b * pressure_kPa)
+
+    bench = _load(pd.DataFrame({
+        "pressure_kPa": np.linspace(100, 500, 20), "contraction_pct": 0.0,
+        "force_N": np.linspace(10, 50, 20)}), tmp_path)
+    with pytest.raises(ModelDefinitionError, match=r"give b a default \(its start value\)"):
+        pamid.fit_least_squares(bench, NoStart)
+
+
+def test_the_model_is_a_pytree_under_jit_vmap_and_grad():
+    model = Quadratic(**TRUE)
+    p = jnp.linspace(100.0, 500.0, 5)
+    k = jnp.full(5, 10.0)
+    g = jax.grad(lambda m: jnp.sum(m(p, k)))(model)
+    np.testing.assert_allclose(g.c1, jnp.sum(p))
+    batched = jax.vmap(lambda c: Quadratic(c, 1.2, -12.0, 0.01)(p, k))(jnp.arange(3.0))
+    assert batched.shape == (3, 5)
+    np.testing.assert_allclose(jax.jit(lambda m: m(p, k))(model), model(p, k))
