@@ -9,7 +9,6 @@ wrong ends in one line that names the file and the line.
 from __future__ import annotations
 
 import json
-import textwrap
 
 import equinox as eqx
 import jax

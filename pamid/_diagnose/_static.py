@@ -41,6 +41,7 @@ import pandas as pd
 from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
+from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
@@ -50,6 +51,10 @@ from ._select import SetFit
 N_FOLDS = 5
 COVARIATE_DEGREE = 3
 MAX_ITER = 60
+#: Stopping test of the refits (:func:`pamid._fit._engine.levenberg_marquardt`): the
+#: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
+RTOL = 1e-11
+ATOL_N = 1e-9
 #: Legendre degrees of a covariate that the base model already contains (at fixed values of
 #: the other inputs): Sárosi eq. 2.1 and Cullinan eq. 3 are affine in the pressure, and
 #: Cullinan eq. 3 is quadratic in the contraction y. Those terms would be unidentifiable.
@@ -470,36 +475,16 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
 
     params0 = jnp.concatenate([theta0, jnp.zeros(1 + s)])
     eye_off = jnp.diag(1.0 - mask)
-
-    def step(state):
-        params, lam, sse, it, done = state
-        r, jac = normal(params)
-        a = jac.T @ jac
-        g = jac.T @ r
-        d = jnp.diag(a) * mask + (1.0 - mask)
-        trial = params - jnp.linalg.solve(a + lam * jnp.diag(d) + eye_off, g)
-        r_new = resid(trial)
-        sse_new = r_new @ r_new
-        better = jnp.isfinite(sse_new) & (sse_new <= sse)
-        params = jnp.where(better, trial, params)
-        # At the optimum a step changes the SSE by rounding only, better or not.
-        rel = jnp.abs(sse - sse_new) / jnp.maximum(sse, 1e-300)
-        done = (rel < 1e-11) & (lam < 1.0)
-        lam = jnp.where(better, jnp.maximum(lam / 5.0, 1e-12), lam * 8.0)
-        done = done | (lam > 1e12)
-        return params, lam, jnp.where(better, sse_new, sse), it + 1, done
-
-    r0 = resid(params0)
-    state = (params0, jnp.asarray(1e-4), r0 @ r0, 0, False)
-    params, lam, sse, it, done = jax.lax.while_loop(
-        lambda st: (~st[4]) & (st[3] < MAX_ITER), step, state)
-    r, jac = normal(params)
+    floor = jnp.sum(w > 0) * ATOL_N**2
+    sol = levenberg_marquardt(normal, params0, mask, max_steps=MAX_ITER, rtol=RTOL,
+                              floor=floor)
+    params, sse, jac = sol.params, sol.sse, sol.jac
     a = jac.T @ jac + eye_off
     jtj_inv = jnp.linalg.inv(a) * mask[:, None] * mask[None, :]
     rank = numerical_rank(jac)
     resid_all = y - pred(params)
     sse_test = jnp.sum(w_test * resid_all**2)
-    ok = jnp.all(jnp.isfinite(params)) & (lam < 1e12)
+    ok = sol.result == CONVERGED
     return params, sse, sse_test, resid_all, jtj_inv, ok, rank
 
 
@@ -513,7 +498,7 @@ _fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))
 
 def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[dict]:
     """Per muscle: every selected effect's constants with Wald-t intervals."""
-    from .._fit._intervals import t_critical
+    from .._fit._intervals import wald_interval
 
     k = problem.spec.n_params
     out = []
@@ -521,7 +506,6 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
     for i in range(len(params)):
         dof = int(fit.n[i] - fit.k[i])
         s2 = float(fit.sse[i]) / dof if dof > 0 else math.nan
-        t = float(t_critical(dof, level))
         se = np.sqrt(np.maximum(np.diag(cov_un[i]) * s2, 0.0))
         if not fit.extra["full_rank"][i]:
             se = np.full_like(se, np.nan)  # some constants are not identifiable: no interval
@@ -537,8 +521,8 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
                 slot += len(e.columns)
             for pname, unit, j in zip(e.param_names, e.units, idx, strict=True):
                 v = float(params[i][j])
-                consts[pname] = {"value": v, "ci95": [v - t * se[j], v + t * se[j]],
-                                 "unit": unit}
+                lo, hi = wald_interval(v, se[j], dof, level)
+                consts[pname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit}
             if name == "compliance" and e.units[0] == "%/N" and problem.l0_mm[i]:
                 scale = problem.l0_mm[i] / 100.0
                 c = consts["c"]

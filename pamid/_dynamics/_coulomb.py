@@ -77,7 +77,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._fit._intervals import t_critical
+from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._intervals import wald_interval
 from .._sim._oscillator import _cos_sinc
 from ._decay import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
 
@@ -220,22 +221,16 @@ def coulomb_response(
 # --------------------------------------------------------------------------------------
 
 
-def _masked_normal(jac, r, mask):
-    """g = Jᵀr and JᵀJ with the masked rows/columns replaced by the identity (masked g = 0)."""
-    both = mask[:, None] * mask[None, :]
-    h = jnp.where(both > 0, jac.T @ jac, jnp.eye(mask.shape[0]))
-    return mask * (jac.T @ r), h
-
-
 @functools.partial(jax.jit, static_argnames=("n_half", "max_steps"))
 def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
-    """One Levenberg–Marquardt solve per lane (Nielsen's damping update, Marquardt scaling).
+    """One Levenberg–Marquardt solve per lane, by pamid's one masked loop
+    (:func:`pamid._fit._engine.levenberg_marquardt`).
 
     Stops when the Gauss–Newton step would lower the SSE by less than ``rtol`` of itself
-    plus (:data:`ATOL_RAD`)² per sample (gᵀ(JᵀJ)⁻¹g ≤ rtol·SSE + n·ATOL_RAD², the second
-    term for data the model fits exactly): then ``converged``. Returns the scaled optimum,
-    the residuals model − y at every sample (also where w = 0: the held-out predictions),
-    the weighted Jacobian there, the convergence flag and the number of steps.
+    plus (:data:`ATOL_RAD`)² per sample (the second term for data the model fits exactly):
+    then ``converged``. Returns the scaled optimum, the residuals model − y at every sample
+    (also where w = 0: the held-out predictions), the weighted Jacobian there, the
+    convergence flag and the number of steps.
     """
 
     def one(p0, scale, mask, t, y, w):
@@ -245,45 +240,14 @@ def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
         def linearise(p):
             jac, r = jax.jacfwd(lambda q: (model_minus_data(q),) * 2, has_aux=True)(p)
             rw = jnp.where(w > 0, w * r, 0.0)  # NaN-safe: padding never counts
-            jw = jnp.where(w[:, None] > 0, w[:, None] * jac, 0.0) * mask
-            g, h = _masked_normal(jw, rw, mask)
-            return r, jw, g, h, jnp.sum(rw**2)
+            jw = jnp.where(w[:, None] > 0, w[:, None] * jac, 0.0)
+            return rw, jw
 
         floor = jnp.sum(w > 0) * ATOL_RAD**2
-
-        def small(g, h, sse):
-            return g @ jnp.linalg.solve(h, g) <= rtol * sse + floor
-
-        r, jw, g, h, sse = linearise(p0)
-        state = (p0, r, jw, g, h, sse, jnp.asarray(1e-3), jnp.asarray(2.0), 0, small(g, h, sse))
-
-        def cond(s):
-            return (~s[-1]) & (s[8] < max_steps)
-
-        def body(s):
-            p, r, jw, g, h, sse, lam, nu, k, _ = s
-            d = jnp.diag(h)
-            dmp = h + lam * jnp.diag(jnp.maximum(d, 1e-12 * jnp.max(d)))
-            step = -jnp.linalg.solve(dmp, g)
-            predicted = -(g @ step + 0.5 * step @ h @ step)
-            p_new = p + step
-            r_n, jw_n, g_n, h_n, sse_n = linearise(p_new)
-            rho = 0.5 * (sse - sse_n) / jnp.maximum(predicted, 1e-300)
-            ok = jnp.isfinite(sse_n) & (rho > 1e-4)
-            lam = jnp.where(
-                ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), lam * nu
-            )
-            nu = jnp.where(ok, 2.0, 2.0 * nu)
-            p, r, jw, g, h, sse = (
-                jnp.where(ok, a, b)
-                for a, b in ((p_new, p), (r_n, r), (jw_n, jw), (g_n, g), (h_n, h), (sse_n, sse))
-            )
-            done = small(g, h, sse) | (lam > 1e16)
-            return p, r, jw, g, h, sse, lam, nu, k + 1, done
-
-        p, r, jw, g, h, sse, lam, _, k, _ = jax.lax.while_loop(cond, body, state)
-        converged = small(g, h, sse) & jnp.isfinite(sse)
-        return p, r, jw, converged, k
+        sol = levenberg_marquardt(linearise, p0, mask, max_steps=max_steps, rtol=rtol,
+                                  floor=floor)
+        return sol.params, model_minus_data(sol.params), sol.jac, sol.result == CONVERGED, \
+            sol.steps
 
     return jax.vmap(one)(p0, scale, mask, t, y, w)
 
@@ -568,7 +532,6 @@ def _params_and_intervals(theta, jw, scale, mask, sse, n, inertia):
         cov_scaled = np.full((n_par, n_par), np.nan)
     cov = np.zeros((len(theta), len(theta)))
     cov[np.ix_(mask, mask)] = cov_scaled * np.outer(scale[mask], scale[mask])
-    tq = float(t_critical(dof, LEVEL))
     params = dict(zip(FIT_NAMES, (float(v) for v in theta), strict=True))
     omega, shift = params["omega_n_rad_s"], params["coulomb_shift_rad"]
     params["coulomb_Nm"] = shift * inertia * omega**2
@@ -576,10 +539,11 @@ def _params_and_intervals(theta, jw, scale, mask, sse, n, inertia):
     for i, name in enumerate(FIT_NAMES):
         if mask[i]:
             se = math.sqrt(max(cov[i, i], 0.0))
-            cis[name] = [params[name] - tq * se, params[name] + tq * se]
+            cis[name] = [float(b) for b in wald_interval(params[name], se, dof, LEVEL)]
     if mask[FIT_NAMES.index("coulomb_shift_rad")]:
         i, j = FIT_NAMES.index("omega_n_rad_s"), FIT_NAMES.index("coulomb_shift_rad")
         g = np.array([2.0 * inertia * omega * shift, inertia * omega**2])
         se = math.sqrt(max(float(g @ cov[np.ix_([i, j], [i, j])] @ g), 0.0))
-        cis["coulomb_Nm"] = [params["coulomb_Nm"] - tq * se, params["coulomb_Nm"] + tq * se]
+        cis["coulomb_Nm"] = [float(b) for b in
+                             wald_interval(params["coulomb_Nm"], se, dof, LEVEL)]
     return params, cis

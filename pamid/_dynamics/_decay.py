@@ -114,6 +114,7 @@ import optimistix as optx
 import scipy.linalg
 
 from .._errors import BenchDataError
+from .._fit._intervals import t_critical, wald_interval
 from .._io import json_ready as _plain
 from .._sim._oscillator import DampedOscillator, oscillator_response
 
@@ -421,7 +422,7 @@ def _find_extrema(t: np.ndarray, y: np.ndarray, unit: float) -> Extrema:
 
 
 def _t(dof: float) -> float:
-    return float(_stats().t.ppf(0.5 + LEVEL / 2, dof)) if dof > 0 else math.nan
+    return float(t_critical(dof, LEVEL))
 
 
 def _slope(xs: list[np.ndarray], ys: list[np.ndarray], ws: list[np.ndarray] | None = None):
@@ -507,8 +508,7 @@ def _common_slope_gls(columns, ys, covs):
 
 
 def _interval(value, se, dof):
-    t = _t(dof)
-    return [value - t * se, value + t * se]
+    return [float(b) for b in wald_interval(value, se, dof, LEVEL)]
 
 
 def _log_interval(value, rel_se, dof):

@@ -23,7 +23,7 @@ with β the simulated joint angle released from (β0_i, β̇0_i) at t_0, and opt
 Every trial is fitted on its own (its own G as well), all trials in one vmapped, jit-
 compiled optimistix Gauss–Newton (or Levenberg–Marquardt) solve in float64, the
 parameters scaled to order one. Intervals are Wald, θ̂ ± t_{0.975, n−p}·se with
-se² = s²·diag((JᵀJ)⁻¹) and s² = SSE/(n − p) (:func:`pamid._fit._intervals.t_critical`).
+se² = s²·diag((JᵀJ)⁻¹) and s² = SSE/(n − p) (:func:`pamid._fit._intervals.wald_interval`).
 The pooled G is the inverse-variance weighted mean of the converged trials' G (fixed
 effect), its interval Student-t with the summed residual dof.
 """
@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._fit._intervals import t_critical
+from .._fit._intervals import wald_interval
 from .._sim._joint_sim import JointArm, _rhs, _sealed_pressures
 from .._sim._oscillator import rk4_scan
 
@@ -259,8 +259,7 @@ def fit_joint_decays(
         except np.linalg.LinAlgError:
             continue
         se[i] = np.sqrt(np.maximum(np.diag(cov), 0.0)) * scale[i]
-    tq = np.asarray(t_critical(dof, level))[:, None]
-    ci = np.stack([theta - tq * se, theta + tq * se], -1)
+    ci = np.stack(wald_interval(theta, se, np.asarray(dof)[:, None], level), -1)
     converged = np.asarray(ok, bool)
 
     j = fit.index("G")
@@ -270,8 +269,8 @@ def fit_joint_decays(
         wt = 1.0 / g_se[use] ** 2
         pooled = float(np.sum(wt * g[use]) / np.sum(wt))
         pooled_se = float(1.0 / math.sqrt(np.sum(wt)))
-        tp = float(t_critical(int(np.sum(dof[use])), level))
-        pooled_ci = (pooled - tp * pooled_se, pooled + tp * pooled_se)
+        pooled_ci = tuple(float(b) for b in
+                          wald_interval(pooled, pooled_se, int(np.sum(dof[use])), level))
     else:
         pooled, pooled_se, pooled_ci = math.nan, math.nan, (math.nan, math.nan)
 

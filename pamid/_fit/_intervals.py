@@ -34,15 +34,25 @@ def t_critical(dof, level: float = 0.95):
     return np.where(dof > 0, stdtrit(np.maximum(dof, 1), 0.5 + level / 2), np.nan)
 
 
+def wald_interval(value, se, dof, level: float = 0.95):
+    """The Wald interval value ± t·se with the Student-t quantile for ``dof`` degrees of
+    freedom (pamid's one Wald routine; broadcasts). Returns (lower, upper); NaN without
+    degrees of freedom."""
+    t = t_critical(dof, level)
+    value, se = np.asarray(value, float), np.asarray(se, float)
+    return value - t * se, value + t * se
+
+
 def wald(theta, jtj_inv, sse, n, level: float = 0.95):
-    """Wald intervals with Student-t quantiles. Returns (se, lower, upper, s2, dof)."""
+    """Wald intervals of a least-squares fit: se² = s²·diag((JᵀJ)⁻¹), s² = SSE/(n − p), and
+    :func:`wald_interval`. Returns (se, lower, upper, s2, dof)."""
     n_params = theta.shape[-1]
     dof = n - n_params
     s2 = np.where(dof > 0, sse / np.maximum(dof, 1), np.nan)
     with np.errstate(invalid="ignore"):  # undetermined constants: NaN, said in the message
         se = np.sqrt(s2[:, None] * np.diagonal(jtj_inv, axis1=-2, axis2=-1))
-    t = t_critical(dof, level)[:, None]
-    return se, theta - t * se, theta + t * se, s2, dof
+    lower, upper = wald_interval(theta, se, np.asarray(dof)[..., None], level)
+    return se, lower, upper, s2, dof
 
 
 #: An interval end has converged when the last Newton step moved every constant by less

@@ -1,0 +1,118 @@
+"""pamid's one masked Levenberg–Marquardt loop, for one lane; batched by ``jax.vmap``.
+
+Every least-squares problem that pamid solves with its own loop goes through
+:func:`levenberg_marquardt`: the diagnosis refits (a model plus candidate effects, some
+constants held by a mask so that every effect set of a batch has the same shape) and the
+decay trajectory fits with friction (:mod:`pamid._dynamics._coulomb`). Static force laws
+are solved by optimistix (``_least_squares``), or by a model's registered written-out
+kernels (Sárosi's Gauss–Newton).
+
+The method: Levenberg–Marquardt with Marquardt's scaling (the damping proportional to the
+diagonal of JᵀJ) and Nielsen's damping update (H. B. Nielsen, "Damping parameter in
+Marquardt's method", IMM-REP-1999-05, eq. 2.4): after a step with gain ratio ρ > 0 the
+damping is multiplied by max(1/3, 1 − (2ρ − 1)³), after a rejected one by ν, which doubles
+each time. It stops when the Gauss–Newton step would lower the weighted sum of squares by
+at most ``rtol`` of itself plus ``floor`` (the Newton decrement gᵀ(JᵀJ)⁻¹g; ``floor`` is
+for data the model fits exactly).
+
+Masked constants (mask 0) keep their start values: their rows and columns of JᵀJ are
+replaced by the identity and their gradient by 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+#: Result codes, the same names as ``FitResult.status``.
+CONVERGED, MAX_STEPS, NONFINITE, STALLED = 0, 1, 2, 3
+RESULT_NAMES = ("converged", "max_steps", "nonfinite", "stalled")
+#: Damping beyond which no step can lower the sum of squares: the loop has stalled.
+MAX_DAMPING = 1e16
+
+
+class Solution(NamedTuple):
+    """The end of one lane's solve.
+
+    Attributes:
+        params: the constants (masked ones at their start values).
+        residual: ``linearise``'s residual at ``params`` (weighted as it returns it).
+        jac: its Jacobian there, masked columns zero.
+        sse: the sum of squares of ``residual``.
+        result: a result code (:data:`RESULT_NAMES`).
+        steps: the number of steps taken.
+    """
+
+    params: jax.Array
+    residual: jax.Array
+    jac: jax.Array
+    sse: jax.Array
+    result: jax.Array
+    steps: jax.Array
+
+
+def masked_normal(jac, r, mask):
+    """g = Jᵀr and JᵀJ, the masked rows and columns replaced by the identity (g = 0 there)."""
+    both = mask[:, None] * mask[None, :]
+    h = jnp.where(both > 0, jac.T @ jac, jnp.eye(mask.shape[0], dtype=jac.dtype))
+    return mask * (jac.T @ r), h
+
+
+def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: float,
+                        floor=0.0, damping0: float = 1e-3) -> Solution:
+    """Minimise ‖r(p)‖² for one lane from ``p0``, holding the constants where ``mask`` is 0.
+
+    Args:
+        linearise: ``p -> (r, J)``, the (weighted) residual vector and its Jacobian in p;
+            rows of weight 0 must be zero in both (padding, held-out samples).
+        p0: start values; mask: 1.0 for a free constant, 0.0 for a held one.
+        max_steps: the step budget; rtol, floor: the stopping test (module docstring).
+    """
+    mask = jnp.asarray(mask, dtype=p0.dtype)
+
+    def lin(p):
+        r, jac = linearise(p)
+        jac = jac * mask[None, :]
+        g, h = masked_normal(jac, r, mask)
+        return r, jac, g, h, r @ r
+
+    def small(g, h, sse):
+        return g @ jnp.linalg.solve(h, g) <= rtol * sse + floor
+
+    r, jac, g, h, sse = lin(p0)
+    state = (p0, r, jac, g, h, sse, jnp.asarray(damping0, p0.dtype),
+             jnp.asarray(2.0, p0.dtype), 0, small(g, h, sse) | ~jnp.isfinite(sse))
+
+    def cond(s):
+        return (~s[-1]) & (s[8] < max_steps)
+
+    def body(s):
+        p, r, jac, g, h, sse, lam, nu, k, _ = s
+        d = jnp.diag(h)
+        damped = h + lam * jnp.diag(jnp.maximum(d, 1e-12 * jnp.max(d)))
+        step = -jnp.linalg.solve(damped, g)
+        predicted = -(g @ step + 0.5 * step @ h @ step)
+        p_new = p + step
+        r_n, jac_n, g_n, h_n, sse_n = lin(p_new)
+        rho = 0.5 * (sse - sse_n) / jnp.maximum(predicted, 1e-300)
+        ok = jnp.isfinite(sse_n) & (rho > 1e-4)
+        lam = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
+                        lam * nu)
+        nu = jnp.where(ok, 2.0, 2.0 * nu)
+        p, r, jac, g, h, sse = (
+            jnp.where(ok, a, b)
+            for a, b in ((p_new, p), (r_n, r), (jac_n, jac), (g_n, g), (h_n, h), (sse_n, sse))
+        )
+        done = small(g, h, sse) | (lam > MAX_DAMPING)
+        return p, r, jac, g, h, sse, lam, nu, k + 1, done
+
+    p, r, jac, g, h, sse, lam, _, k, _ = jax.lax.while_loop(cond, body, state)
+    finite = jnp.isfinite(sse) & jnp.all(jnp.isfinite(p))
+    result = jnp.where(
+        ~finite, NONFINITE,
+        jnp.where(small(g, h, sse), CONVERGED, jnp.where(lam > MAX_DAMPING, STALLED, MAX_STEPS)))
+    return Solution(p, r, jac, sse, result, k)
+
