@@ -37,8 +37,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
+from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._intervals import wald_interval
 from .._sim._joint_sim import JointArm, _rhs, _sealed_pressures
 from .._sim._oscillator import rk4_scan
@@ -54,7 +54,10 @@ JOINT_FIT_NAMES = {
     "angle_offset": "rad",
 }
 _REQUIRED = ("G", "beta0", "beta_dot0")
-_SOLVERS = {"gauss_newton": optx.GaussNewton, "levenberg_marquardt": optx.LevenbergMarquardt}
+#: Starting damping of pamid's one least-squares loop for each ``method``: Gauss–Newton
+#: steps (the damping rises only after a step that does not lower the SSE), or
+#: Levenberg–Marquardt's usual start.
+_DAMPING0 = {"gauss_newton": 1e-12, "levenberg_marquardt": 1e-3}
 
 
 def _with_damping(arm: JointArm, g, pressure_scale):
@@ -84,16 +87,16 @@ def _fit_batch(arm, names, method, p0, scale, y, w, dt, n, substeps, rtol, atol,
         return _simulate_angle(arm, g, b0, v0, s, dt, n, substeps) + off
 
     def one(p0, scale, y, w):
-        def residuals(q, _):
-            return w * (model(q * scale) - y)
+        def linearise(q):
+            jac, r = jax.jacfwd(lambda qq: (w * (model(qq * scale) - y),) * 2,
+                                has_aux=True)(q)
+            return r, jac
 
-        sol = optx.least_squares(residuals, _SOLVERS[method](rtol=rtol, atol=atol), p0,
-                                 max_steps=max_steps, throw=False)
-        q = sol.value
-        r = residuals(q, None)
-        jac = jax.jacfwd(lambda qq: residuals(qq, None))(q)
-        ok = (sol.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(r))
-        return q * scale, r, jac, ok, sol.stats["num_steps"]
+        sol = levenberg_marquardt(linearise, p0, jnp.ones_like(p0), max_steps=max_steps,
+                                  rtol=rtol, floor=jnp.sum(w > 0) * atol**2,
+                                  damping0=_DAMPING0[method])
+        ok = (sol.result == CONVERGED) & jnp.all(jnp.isfinite(sol.residual))
+        return sol.params * scale, sol.residual, sol.jac, ok, sol.steps
 
     return jax.vmap(one)(p0, scale, y, w)
 
@@ -179,10 +182,12 @@ def fit_joint_decays(
         start: start values by name, scalar or one per trial. Defaults: G from
             ``arm.muscle1.G`` (0.3 N·s/mm if that is not positive), β0 the first sample, β̇0
             a finite difference over the first 5 samples, scale 1, offset 0.
-        method: ``"gauss_newton"`` (default; compiles in about a third of the time) or
-            ``"levenberg_marquardt"`` (optimistix solvers; same answers on the tests' decays).
+        method: ``"gauss_newton"`` (default: undamped steps while they lower the SSE) or
+            ``"levenberg_marquardt"`` (damped from the start); both are pamid's one loop,
+            :func:`pamid._fit._engine.levenberg_marquardt`.
         substeps: RK4 steps per sample interval.
-        rtol, atol, max_steps: Levenberg–Marquardt settings.
+        rtol, atol, max_steps: stop when a Gauss–Newton step would lower the SSE by at
+            most ``rtol`` of itself plus ``atol``² per sample, or after ``max_steps``.
         level: confidence level of the intervals (default 95 %).
 
     Returns:
@@ -196,8 +201,8 @@ def fit_joint_decays(
     missing = [k for k in _REQUIRED if k not in fit]
     if missing:
         raise ValueError(f"fit must include {missing!r}")
-    if method not in _SOLVERS:
-        raise ValueError(f"method must be one of {tuple(_SOLVERS)}, got {method!r}")
+    if method not in _DAMPING0:
+        raise ValueError(f"method must be one of {tuple(_DAMPING0)}, got {method!r}")
     if int(substeps) < 1:
         raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
     start = dict(start or {})

@@ -2,10 +2,12 @@
 
 Every least-squares problem that pamid solves with its own loop goes through
 :func:`levenberg_marquardt`: the diagnosis refits (a model plus candidate effects, some
-constants held by a mask so that every effect set of a batch has the same shape) and the
-decay trajectory fits with friction (:mod:`pamid._dynamics._coulomb`). Static force laws
-are solved by optimistix (``_least_squares``), or by a model's registered written-out
-kernels (Sárosi's Gauss–Newton).
+constants held by a mask so that every effect set of a batch has the same shape), the
+free-decay trajectory fits (linear, :mod:`pamid._dynamics._decay`; with friction,
+:mod:`pamid._dynamics._coulomb`) and the joint's decay fits
+(:mod:`pamid._dynamics._joint_fit`). Static force laws are solved by optimistix or jaxopt
+(``_least_squares``, where the solver is the user's choice), or by a model's registered
+written-out kernels (Sárosi's Gauss–Newton).
 
 The method: Levenberg–Marquardt with Marquardt's scaling (the damping proportional to the
 diagonal of JᵀJ) and Nielsen's damping update (H. B. Nielsen, "Damping parameter in
