@@ -3,7 +3,7 @@
 Each class here is one physical effect that Sárosi's static force model (eq. 2.1) does not
 declare. :class:`~pamid._data._virtual_bench.SarosiProtocol` takes any number of them in its
 ``effects`` field, in any size and in more than one functional form, so that the diagnosis
-of issue #5 (``pamid diagnose``) can be tested on data whose file does not mention them.
+of ``pamid diagnose`` can be tested on data whose file does not mention them.
 An effect may add a column to the file (temperature, a humidity reading) as a real logger
 would, but never says that the force depends on it.
 

@@ -2,7 +2,7 @@
 
 Sárosi moves the muscle's end at constant pressure (:mod:`pamid._data._virtual_bench`);
 many labs do the opposite. The Agile & Adaptive Robotics Lab's isometric protocol (Portland
-State University; see ``../shared/data/README.md``) clamps each muscle at a few fixed
+State University, as documented with its published data set) clamps each muscle at a few fixed
 lengths — 0 % and 25/50/75 % of the way to its length at the largest pressure — while a
 pulsed valve steps the pressure up to about 620 kPa, holds it, and steps it back down,
 three trials per length, about 28 s each, the logger's clock restarting at 0 in every

@@ -1,7 +1,7 @@
 """The virtual joint bench: Cullinan's two joint tests, simulated from known constants.
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
-Antagonistically Actuated Joints" (in ../shared/seeds/), Sections III–V.
+Antagonistically Actuated Joints", Sections III–V.
 
 1. The torque sweep of Section IV (:func:`simulate_joint_sweep`). The arm is removed, so
    the joint carries no load and the two PAMs only act against each other. One PAM is held

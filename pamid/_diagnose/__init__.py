@@ -1,1 +1,1 @@
-"""Closing the loop (issue #5): residual analysis, candidate effects, forward selection."""
+"""Closing the loop: residual analysis, candidate effects, forward selection."""

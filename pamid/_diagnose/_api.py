@@ -1,6 +1,6 @@
 """``pamid.diagnose``: find what a fitted model misses, name it, model it, report the gain.
 
-The procedure (issue #5):
+The procedure:
 
 1. Fit the baseline model (Sárosi eq. 2.1 or Cullinan eq. 3 for bench files; the linear
    damped oscillator for decay files). Analyse its residual: whiteness of the time-ordered

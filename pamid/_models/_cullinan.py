@@ -1,7 +1,7 @@
 """Cullinan's phenomenological PAM model: contractile force, spring and damper in parallel.
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
-Antagonistically Actuated Joints" (in ../shared/seeds/), eq. 1–3.
+Antagonistically Actuated Joints", eq. 1–3.
 
     F = F_ce − K·y − c·ẏ                                   (eq. 2)
     F = A + B·P′ − (C + D·P′ + E·y)·y − G·ẏ                 (eq. 3)

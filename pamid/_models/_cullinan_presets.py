@@ -1,7 +1,7 @@
 """Muscles and joints like Cullinan's, with constants obtained from a physical braided-PAM model.
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
-Antagonistically Actuated Joints" (in ../shared/seeds/). The paper prints no numbers for the
+Antagonistically Actuated Joints". The paper prints no numbers for the
 constants A–G of eq. 3, nor for the volume model of its ref. [12]. What it does give
 (Section III): an active length of 190 mm ± 2, a 40 mm inner-diameter latex bladder with a
 1.5 mm wall, a PET braid, aluminium end fittings and internal element, an 80 mm pulley,

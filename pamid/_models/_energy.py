@@ -1,7 +1,7 @@
 """Energy an ideal isothermal compressor spends to drive a PAM joint along a trajectory.
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
-Antagonistically Actuated Joints" (in ../shared/seeds/), Section VII, eq. 13–14, after
+Antagonistically Actuated Joints", Section VII, eq. 13–14, after
 Chou & Hannaford (1996). Air is an ideal gas, every change is isothermal at T = 293.15 K,
 and the dynamics of joint and muscles (G in eq. 3) are ignored.
 

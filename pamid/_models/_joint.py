@@ -2,7 +2,7 @@
 stiffness available for a given torque, isobaric and with the valves shut.
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
-Antagonistically Actuated Joints" (in ../shared/seeds/), eq. 3–7 and Sections IV–V.
+Antagonistically Actuated Joints", eq. 3–7 and Sections IV–V.
 
     F_i = A + B·P′_i − (C + D·P′_i + E·y_i)·y_i − G·ẏ_i              (Cullinan eq. 3)
     T   = r·(F1 − F2)                                                 (Cullinan eq. 4)

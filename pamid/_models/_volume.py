@@ -2,7 +2,7 @@
 
 Source of the geometry: C.-P. Chou and B. Hannaford, "Measurement and modelling of McKibben
 pneumatic artificial muscles" (1996), ref. [21] of Cullinan, McGinn and Kelly, "Sleeve
-Pneumatic Artificial Muscles for Antagonistically Actuated Joints" (in ../shared/seeds/).
+Pneumatic Artificial Muscles for Antagonistically Actuated Joints".
 Cullinan uses the volume of a PAM for the closed-system stiffness (Section V) and the energy
 of the ideal compressor (Section VII, eq. 13–14); its own volume model, fitted to
 measurements in its ref. [12], is not printed, so pamid uses the braid's geometry instead.

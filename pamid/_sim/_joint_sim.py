@@ -1,7 +1,7 @@
 """Free motion of Cullinan's antagonistic joint with its arm and masses, valves shut.
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
-Antagonistically Actuated Joints" (in ../shared/seeds/), sections II, V and VI.
+Antagonistically Actuated Joints", sections II, V and VI.
 
 Equation of motion (one rotational degree of freedom β, rad):
 
