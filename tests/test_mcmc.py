@@ -26,10 +26,10 @@ import pytest
 from scipy import stats
 
 import pamid
-from pamid._fit._spec import CULLINAN, CULLINAN_DYNAMIC, SAROSI
+from pamid._fit._spec import CULLINAN, CULLINAN_DYNAMIC, SAROSI, spec_from_model
 from pamid._sampling import _arviz, _mcmc, _posterior
 from pamid._sampling._mcmc import McmcBudgetWarning, fit_mcmc
-from pamid._sampling._posterior import Prior, default_prior, make_log_prob
+from pamid._sampling._posterior import SAROSI_PRIOR, Prior, default_prior, make_log_prob
 
 PROTOCOL = pamid.SarosiProtocol(min_force_N=10.0)
 # σ of one averaged point of the virtual bench: five 2 N readings, each quantized to 0.1 N.
@@ -157,12 +157,23 @@ def test_default_priors_follow_the_spec():
 
     with pytest.raises(ValueError, match="no default prior"):
         default_prior(dataclasses.replace(SAROSI, name="new-model", model_class=None))
+    # The documented prior follows the model class, not its name.
+    assert default_prior(dataclasses.replace(SAROSI, name="renamed")) is SAROSI_PRIOR
     # A ForceModel without a documented prior: flat, within its bounds where it has them.
-    flat = default_prior(dataclasses.replace(
-        SAROSI, name="new-model", bounds=((-np.inf,) * 2 + (-5.0,) + (-np.inf,) * 3,
-                                          (np.inf,) * 2 + (0.0,) + (np.inf,) * 3)))
-    assert flat.names == SAROSI.param_names and all(np.isinf(flat.scale))
-    assert (flat.lower[2], flat.upper[2]) == (-5.0, 0.0) and np.isinf(flat.lower[0])
+
+    class Law(pamid.ForceModel):
+        a: float = 1.0
+        b: float = -0.1
+        units = {"a": "N/kPa", "b": "1/%"}
+        inputs = ("pressure_kPa", "contraction_pct")
+        bounds = {"b": (-5.0, 0.0)}
+
+        def __call__(self, pressure_kPa, contraction_pct):
+            return self.a * pressure_kPa * jnp.exp(self.b * contraction_pct)
+
+    flat = default_prior(spec_from_model(Law))
+    assert flat.names == ("a", "b") and all(np.isinf(flat.scale))
+    assert (flat.lower[1], flat.upper[1]) == (-5.0, 0.0) and np.isinf(flat.lower[0])
     with pytest.raises(ValueError, match="scale must be positive"):
         Prior(names=("a",), loc=(0.0,), scale=(0.0,), lower=(-1.0,), upper=(1.0,))
 

@@ -157,16 +157,21 @@ CULLINAN_PRIOR = Prior(
     ),
 )
 
-_PRIORS = {"sarosi": SAROSI_PRIOR, "cullinan": CULLINAN_PRIOR}
+def _documented_priors() -> dict:
+    """The documented priors, registered by model class (a spec of the same class keeps its
+    prior whatever its name; any other model gets :func:`model_prior`)."""
+    from .._models._cullinan import Cullinan
+    from .._models._sarosi import Sarosi
+
+    return {Sarosi: SAROSI_PRIOR, Cullinan: CULLINAN_PRIOR}
 
 
 def default_prior(spec: ModelSpec) -> Prior:
     """The documented prior for a model, restricted to the constants its spec fits."""
-    if spec.name not in _PRIORS and spec.model_class is not None:
+    full = _documented_priors().get(spec.model_class)
+    if full is None and spec.model_class is not None:
         return model_prior(spec)
-    try:
-        full = _PRIORS[spec.name]
-    except KeyError:
+    if full is None:
         raise ValueError(
             f"no default prior for model {spec.name!r}: pass prior=Prior(...) with the "
             f"constants {spec.param_names}"
