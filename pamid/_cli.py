@@ -3,10 +3,12 @@
 
 Bad input ends with a one-line message that names the file, column and row, and exit code 2;
 no traceback. Exit codes: 0 done; 1 a fit that did not converge; 2 bad input or a bad output
-place; 3 an internal failure — out of memory, or a defect — told in one line
-(``PAMID_DEBUG=1`` shows the traceback instead); 130 interrupted; 143 terminated
-(SIGTERM: temporary files removed); 141 stdout closed early
-(``pamid fit --json | head``), silently (:mod:`pamid._commands.failure`). ``--json``
+place, or a wrong option (argparse's errors in one line too); 3 an internal failure — out of
+memory, or a defect — told in one line (``PAMID_DEBUG=1`` shows the traceback instead); 130
+interrupted; 143 terminated (SIGTERM); 141 stdout closed early
+(``pamid fit --json | head``), silently (:mod:`pamid._commands.failure`). Results go to
+``--out`` as one set when the command has finished; on any failure or signal ``--out`` is
+left as it was (:func:`pamid._io.output_folder`). ``--json``
 prints exactly one JSON object on stdout; warnings and progress go to stderr. Compiled
 code is cached on disk (``PAMID_CACHE_DIR``, default ``~/.cache/pamid/jax``), so the second
 call of a command skips compilation.
@@ -125,7 +127,7 @@ def _cmd_fit(args) -> int:
 
     from ._data._bench import load_bench
     from ._fit._api import fit_least_squares
-    from ._io import refuse_overwrite_input, write_text_atomic
+    from ._io import final_place, write_text_atomic
 
     quiet = args.json
     t0 = time.perf_counter()
@@ -162,8 +164,7 @@ def _cmd_fit(args) -> int:
     payload["seconds"] = round(time.perf_counter() - t0, 3)
     if args.out:
         out = Path(args.out)
-        refuse_overwrite_input(out / "fit.json", [args.data])
-        _stage(f"writing plots to {out}", quiet)
+        _stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _write_plots(bench, result, out, args.max_plots)
         write_text_atomic(out / "fit.json", json.dumps(payload, indent=2) + "\n")
     if args.json:
@@ -183,7 +184,7 @@ def _cmd_demo(args) -> int:
     from ._data._default import default_bench_path, default_protocol
     from ._fit._api import fit_least_squares
     from ._fit._batch import pack
-    from ._io import write_text_atomic
+    from ._io import final_place, write_text_atomic
     from ._models._hysteresis import hysteresis_damping
     from ._models._sarosi import TABLE_3_1, TABLE_3_1_L0_MM, Sarosi, table_3_1_fit_json
     from ._units import KPA_PER_BAR
@@ -258,12 +259,43 @@ def _cmd_demo(args) -> int:
     summary["published_table_3_1"] = table_3_1_fit_json()["muscles"][0]["params"]
     summary["plots"] = plots
     write_text_atomic(out / "demo.json", json.dumps(summary, indent=2) + "\n")
-    print(f"\nPlots and demo.json written to {out}/: {', '.join(plots)}")
+    print(f"\nPlots and demo.json written to {final_place(out)}/: {', '.join(plots)}")
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors in one line, exit 2, for every subcommand (subparsers take
+    the class of their parent): ``pamid fit: error: argument --max-plots: invalid int
+    value: '1.5' (see pamid fit --help)``. ``PAMID_DEBUG=1`` prints argparse's usage above
+    it, for developers."""
+
+    def error(self, message: str):
+        from ._commands import failure
+
+        if failure.debugging():
+            self.print_usage(sys.stderr)
+        message = " ".join(str(message).split())
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        # argparse reports an unknown option from the top parser ("pamid: error: ...");
+        # name the subcommand it was given to instead.
+        namespace, extra = self.parse_known_args(args, namespace)
+        if extra:
+            prog = " ".join(filter(None, (self.prog, _command_name(namespace))))
+            _Parser(prog=prog, add_help=False).error(
+                f"unrecognized arguments: {' '.join(extra)}")
+        return namespace
+
+
+def _command_name(args) -> str:
+    """The (sub)command given: ``fit``, ``simulate lifting-mass``, … ("" for none)."""
+    words = (getattr(args, "command", None), getattr(args, "system", None))
+    return " ".join(filter(None, words))
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="pamid", description="System identification for pneumatic artificial muscles."
     )
     sub = parser.add_subparsers(dest="command", required=True)
@@ -312,6 +344,16 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _input_files(args) -> list[str]:
+    """The input files named on the command line, a model file (``--model FILE.py:CLASS``)
+    included: no output ever replaces one (pamid._io.protect_inputs)."""
+    files = [getattr(args, name, None) for name in _INPUT_ARGUMENTS]
+    model = getattr(args, "model", None)
+    if isinstance(model, str) and ":" in model:
+        files.append(model.rsplit(":", 1)[0])
+    return files
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     from . import _io
@@ -323,14 +365,19 @@ def main(argv: list[str] | None = None) -> int:
     sigterm = failure.catch_sigterm()
     try:
         # Before any computing: the output place can be written, and no output of this run
-        # can replace one of its input files (every writer of pamid._io checks).
-        _io.protect_inputs(getattr(args, name, None) for name in _INPUT_ARGUMENTS)
-        _io.check_output_place(getattr(args, "out", None))
-        _enable_compilation_cache()
-        with warnings.catch_warnings():
-            warnings.simplefilter("always")
-            warnings.showwarning = _show_warning
-            code = args.func(args)
+        # can replace one of its input files (every writer of pamid._io checks). The
+        # command writes into a hidden staging folder, moved into --out as one set when it
+        # returns; on any failure or signal --out is left as it was (pamid._io.output_folder).
+        _io.protect_inputs(_input_files(args))
+        with _io.output_folder(getattr(args, "out", None),
+                               command=_command_name(args)) as staging:
+            if staging is not None:
+                args.out = str(staging)
+            _enable_compilation_cache()
+            with warnings.catch_warnings():
+                warnings.simplefilter("always")
+                warnings.showwarning = _show_warning
+                code = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code
     except BenchDataError as exc:
@@ -349,7 +396,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `pamid fit --json | head -c 1`: the reader has what it wanted
         failure.silence_stdout()
         return failure.EXIT_BROKEN_PIPE
-    except failure.Terminated:  # writers have removed their temporary files on the way out
+    except failure.Terminated:  # output_folder has removed the staging folder on the way out
         print("pamid: terminated", file=sys.stderr)
         return failure.EXIT_TERMINATED
     except KeyboardInterrupt:

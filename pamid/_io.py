@@ -6,19 +6,30 @@ and Windows when both paths are on one file system. A reader therefore sees eith
 file or the complete new one, never a half-written file; if writing fails, the temporary
 file is removed and an existing destination is left untouched. Parent directories are
 created as needed.
+
+A command's results go through :func:`output_folder`: every file of one run is written into
+a fresh hidden folder and moved into the output folder as one set when the run ends, so that
+a run either leaves its complete result set or changes nothing there.
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
+import shutil
+import signal
 import tempfile
-from collections.abc import Callable, Iterable
+import threading
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 __all__ = [
     "OutputPlaceError",
     "check_output_place",
+    "final_place",
+    "output_folder",
     "protect_inputs",
     "refuse_overwrite_input",
     "save_figure_atomic",
@@ -91,11 +102,13 @@ def write_atomic(path: str | os.PathLike, write_fn: Callable[[str], Any]) -> Pat
     Returns ``path`` as a :class:`pathlib.Path`.
     """
     dest = Path(path)
-    if dest.is_dir():
-        raise OutputPlaceError(f"cannot write {dest}: it is a folder; remove it or choose "
-                               "another output folder")
+    place = final_place(dest)  # where it ends up: inside an output_folder, not the staging
+    for target in {dest, place}:
+        if target.is_dir():
+            raise OutputPlaceError(f"cannot write {target}: it is a folder; remove it or "
+                                   "choose another output folder")
     for inp in _PROTECTED:  # the inputs of the running command (protect_inputs)
-        refuse_overwrite_input(dest, [inp])
+        refuse_overwrite_input(place, [inp])
     try:
         dest.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -110,8 +123,8 @@ def write_atomic(path: str | os.PathLike, write_fn: Callable[[str], Any]) -> Pat
         write_fn(tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
-        try:
-            mode = dest.stat().st_mode & 0o7777
+        try:  # the file it replaces (in the output folder, past the staging)
+            mode = place.stat().st_mode & 0o7777
         except FileNotFoundError:
             mode = 0o666 & ~_umask()
         os.chmod(tmp, mode)
@@ -224,3 +237,211 @@ def json_ready(value):
     if isinstance(value, (float, np.floating)):
         return float(value) if np.isfinite(value) else None
     return value
+
+
+# --------------------------------------------------------------------------------------
+# One run's results as one set: output_folder
+
+#: The hidden file of an output folder that lists, per command, the files its last run left
+#: there: a re-run replaces exactly that set, and every other file in the folder is left be.
+MANIFEST = ".pamid-outputs.json"
+#: Name of the hidden folder a run writes into (``.pamid-staging-<out>-XXXXXXXX``).
+STAGING_PREFIX = ".pamid-staging-"
+
+#: The output folders of running commands: (staging folder, the output folder it becomes).
+_STAGED: list[tuple[Path, Path]] = []
+
+
+def final_place(path: str | os.PathLike) -> Path:
+    """Where ``path`` will be when its run ends: a path inside the staging folder of an
+    active :func:`output_folder` is mapped to the output folder (for messages, and for the
+    checks of the writers); any other path is returned as it is."""
+    path = Path(path)
+    absolute = Path(os.path.abspath(path))
+    for staging, final in _STAGED:
+        if absolute == staging or staging in absolute.parents:
+            return final / absolute.relative_to(staging)
+    return path
+
+
+@contextlib.contextmanager
+def output_folder(out: str | os.PathLike | None, *, command: str) -> Iterator[Path | None]:
+    """The results of one run of ``command`` as one set: yields a fresh hidden folder to
+    write them into, and moves its content into ``out`` when the block ends without an
+    exception. Yields None (and does nothing) when ``out`` is None or empty.
+
+    Before anything is computed, the output place is checked (:func:`check_output_place`),
+    missing parent folders are made and the staging folder is created: in ``out`` when it
+    is a folder already, beside it otherwise (same file system either way, so that the
+    results are moved by renaming, not copied).
+
+    The guarantee. When the block raises anything (an error, :class:`KeyboardInterrupt`
+    from SIGINT, SIGTERM turned into an exception by
+    :func:`pamid._commands.failure.catch_sigterm`), the staging folder and the parent
+    folders made for it are removed, and ``out`` is left byte for byte as it was (or absent,
+    as it was). When the block ends normally: a new ``out`` is the staging folder renamed,
+    one atomic step; into an existing ``out``, the set of files the previous run of the same
+    ``command`` left there (listed in its :data:`MANIFEST`) and every file of the same name
+    as a new one are moved aside, the new files are renamed in, and the old ones are
+    deleted. Those renames take milliseconds, SIGINT and SIGTERM are held while they run
+    (and acted on after), and if one fails the renames done are undone and ``out`` is as it
+    was (exit 2, one line). Only a hard kill (SIGKILL, power loss) inside that window can
+    leave a mix, and then the old files are in the leftover ``.pamid-staging-*`` folder.
+    Files in ``out`` that ``command`` neither wrote last time nor writes now (a user's
+    notes, another command's results) are never touched; no output ever replaces an input
+    file of the run (:func:`protect_inputs`), and an earlier output that is now an input
+    stays.
+    """
+    if out is None or str(out) == "":
+        yield None
+        return
+    final = Path(out)
+    check_output_place(final)
+    made: list[Path] = []
+    staging = None
+    try:
+        with _signals_held():  # a signal now still finds what to remove below
+            made = _make_parents(final.parent)
+            holder = Path(os.path.abspath(final if final.is_dir() else final.parent))
+            try:
+                staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{final.name}-",
+                                                dir=holder))
+            except OSError as exc:
+                raise OutputPlaceError(f"--out {final}: cannot write in {holder}: "
+                                       f"{exc.strerror or exc}") from exc
+        os.chmod(staging, 0o777 & ~_umask())  # a new --out: a folder as mkdir makes it
+        _STAGED.append((staging, final))
+        try:
+            yield staging
+        finally:
+            _STAGED.remove((staging, final))
+        with _signals_held():
+            _commit(staging, final, command)
+    except BaseException:
+        with _signals_held():
+            if staging is not None:
+                shutil.rmtree(staging, ignore_errors=True)
+            _remove_made(made)
+        raise
+
+
+def _make_parents(folder: Path) -> list[Path]:
+    """Make ``folder`` and its missing parents; returns the folders made, deepest first."""
+    missing = []
+    place = Path(os.path.abspath(folder))
+    while not place.exists() and place.parent != place:
+        missing.append(place)
+        place = place.parent
+    try:
+        for made in reversed(missing):
+            made.mkdir()
+    except OSError as exc:
+        _remove_made(missing)
+        raise OutputPlaceError(f"cannot create the folder {folder}: "
+                               f"{exc.strerror or exc}") from exc
+    return missing
+
+
+def _remove_made(made: list[Path]) -> None:
+    for folder in made:  # deepest first; a folder someone else has filled stays
+        try:
+            folder.rmdir()
+        except OSError:
+            return
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait until the block ends, then act as they would have (Python
+    signal handlers: any thread of the process may receive the signal, so a thread's signal
+    mask would not hold it). Outside the main thread nothing can be held."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        if caught:
+            signal.raise_signal(caught[0])
+
+
+def _plain_name(name) -> bool:
+    """A file name directly in the folder (a manifest someone edited cannot name others)."""
+    return (isinstance(name, str) and name not in ("", ".", "..", MANIFEST)
+            and "/" not in name and "\\" not in name and "\0" not in name)
+
+
+def _read_manifest(folder: Path) -> dict[str, list[str]]:
+    """The folder's manifest: command → names of its last run's files ({} without one)."""
+    try:
+        commands = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))["commands"]
+        return {str(c): [n for n in names if _plain_name(n)] for c, names in commands.items()
+                if isinstance(names, list)}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}
+
+
+def _input_at(path: Path) -> str | None:
+    """The message refusing to replace ``path`` when it is, or is a folder holding, an
+    input file of the running command; None otherwise."""
+    for inp in _PROTECTED:
+        try:
+            refuse_overwrite_input(path, [inp])
+        except ValueError as exc:
+            return str(exc)
+        if path.resolve() in inp.resolve().parents:
+            return f"refusing to replace {path}: it holds the input file {inp}"
+    return None
+
+
+def _commit(staging: Path, final: Path, command: str) -> None:
+    """Move the staged results into ``final`` (see :func:`output_folder`)."""
+    previous = _read_manifest(final) if final.is_dir() else {}
+    new = sorted(p.name for p in staging.iterdir())
+    manifest = {c: [n for n in names if n not in new] for c, names in previous.items()
+                if c != command}
+    manifest[command] = new
+    (staging / MANIFEST).write_text(json.dumps({
+        "about": "written by pamid: the files of the last run of each command in this "
+                 "folder, replaced as one set when the command writes here again",
+        "commands": {c: names for c, names in sorted(manifest.items()) if names}},
+        indent=2) + "\n", encoding="utf-8")
+    units = [*new, MANIFEST]
+    for name in units:  # every refusal before anything moves
+        target = final / name
+        refusal = _input_at(target)
+        if refusal:
+            raise OutputPlaceError(refusal)
+        if (staging / name).is_file() and target.is_dir() and not target.is_symlink():
+            raise OutputPlaceError(f"cannot write {target}: it is a folder; remove it or "
+                                   "choose another output folder")
+    if not os.path.lexists(final):
+        try:
+            os.rename(staging, final)  # a new folder: one atomic step
+            return
+        except OSError:  # made meanwhile by someone else: merge into it as below
+            pass
+    stale = [n for n in previous.get(command, []) if n not in units
+             and os.path.lexists(final / n) and _input_at(final / n) is None]
+    done: list[tuple[Path, Path]] = []
+    try:
+        aside = Path(tempfile.mkdtemp(prefix=".replaced-", dir=staging))
+        for name in [*units, *stale]:
+            if os.path.lexists(final / name):
+                os.replace(final / name, aside / name)
+                done.append((final / name, aside / name))
+        for name in units:
+            os.replace(staging / name, final / name)
+            done.append((staging / name, final / name))
+    except OSError as exc:
+        for src, dst in reversed(done):  # undo: the folder as it was
+            with contextlib.suppress(OSError):
+                os.replace(dst, src)
+        raise OutputPlaceError(f"cannot move the results into {final}: "
+                               f"{exc.strerror or exc}; it is left as it was") from exc
+    shutil.rmtree(staging, ignore_errors=True)

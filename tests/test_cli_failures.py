@@ -1,8 +1,9 @@
 """No traceback, ever: what ``pamid`` says and returns when something other than its input
 fails (out of memory, a defect, Ctrl-C, a closed stdout), and the memory diagnose needs.
 
-Exit codes (pamid/_commands/failure.py): 2 bad input, 1 not converged, 3 internal failure,
-130 interrupted, 141 stdout closed early.
+Exit codes (pamid/_commands/failure.py): 2 bad input or a wrong option (one line, also for
+argparse's own errors), 1 not converged, 3 internal failure, 130 interrupted, 141 stdout
+closed early.
 """
 
 from __future__ import annotations
@@ -131,6 +132,58 @@ def test_message_of_an_exception_without_text():
         "report it")
     long = failure.describe(ValueError("x" * 1000), "fit")
     assert len(long) < failure.MAX_QUOTE + 120
+
+
+# -- a wrong option: argparse's error in one line ----------------------------------------------
+
+
+@pytest.mark.parametrize(("argv", "line"), [
+    (["fit", "x.csv", "--max-plots", "1.5"],
+     "pamid fit: error: argument --max-plots: invalid int value: '1.5' "
+     "(see pamid fit --help)"),
+    (["fit", "x.csv", "--bogus", "1"],
+     "pamid fit: error: unrecognized arguments: --bogus 1 (see pamid fit --help)"),
+    (["fit"], "pamid fit: error: the following arguments are required: data "
+              "(see pamid fit --help)"),
+    (["diagnose", "x.csv", "--folds"],
+     "pamid diagnose: error: argument --folds: expected one argument "
+     "(see pamid diagnose --help)"),
+    (["damping", "d.csv"], "pamid damping: error: the following arguments are required: "
+                           "--inertia (see pamid damping --help)"),
+    (["simulate", "lifting-mass", "--pressure-kPa", "400", "--mass-kg", "x", "--x0-mm", "5"],
+     "pamid simulate lifting-mass: error: argument --mass-kg: invalid float value: 'x' "
+     "(see pamid simulate lifting-mass --help)"),
+    (["simulate", "positioning", "--target-mm", "5", "--zork"],
+     "pamid simulate positioning: error: unrecognized arguments: --zork "
+     "(see pamid simulate positioning --help)"),
+    ([], "pamid: error: the following arguments are required: command (see pamid --help)"),
+])
+def test_a_wrong_option_is_one_line_and_exit_2(argv, line, monkeypatch, capsys):
+    """argparse printed its usage (several lines) above the error."""
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    captured = capsys.readouterr()
+    assert captured.err == line + "\n" and captured.out == ""
+
+
+def test_a_wrong_option_with_pamid_debug_shows_the_usage(monkeypatch, capsys):
+    monkeypatch.setenv("PAMID_DEBUG", "1")
+    with pytest.raises(SystemExit) as stop:
+        main(["fit", "x.csv", "--max-plots", "1.5"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: pamid fit ") and "--max-plots MAX_PLOTS" in err
+    assert err.endswith("pamid fit: error: argument --max-plots: invalid int value: '1.5' "
+                        "(see pamid fit --help)\n")
+
+
+def test_help_is_no_error(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["fit", "--help"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.startswith("usage: pamid fit ")
 
 
 # -- a closed stdout --------------------------------------------------------------------------

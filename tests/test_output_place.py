@@ -76,18 +76,25 @@ def test_an_output_file_that_is_a_folder_is_one_line(tmp_path, capsys):
     assert "it is a folder" in _one_error_line(capsys)
 
 
-def test_sigterm_while_writing_leaves_no_temporary_files(tmp_path, pamid_cli):
-    """A kill during plotting left hidden 0-byte .fit_M1.png.XXXX.tmp files behind."""
+def test_sigterm_while_writing_leaves_the_old_results_as_they_were(tmp_path, pamid_cli):
+    """A kill during plotting left hidden 0-byte .fit_M1.png.XXXX.tmp files behind, and a
+    killed re-run into a folder of results a new plot beside the old fit.json."""
     import signal
     import subprocess
     import sys
 
+    import pandas as pd
+
     out = tmp_path / "out"
-    many = tmp_path / "many.csv"
-    frame = __import__("pandas").read_csv(BUNDLED)
+    many, fewer = tmp_path / "many.csv", tmp_path / "fewer.csv"
+    frame = pd.read_csv(BUNDLED)
     frames = [frame.assign(muscle=f"M{i}") for i in range(40)]  # 81 plots: seconds
-    __import__("pandas").concat(frames).to_csv(many, index=False)
-    pamid_cli(["fit", many, "--intervals", "wald", "--json"])  # fill the compile cache
+    pd.concat(frames).to_csv(many, index=False)
+    pd.concat(f.iloc[:-40] for f in frames[:2]).to_csv(fewer, index=False)  # other plots
+    assert pamid_cli(["fit", many, "--intervals", "wald", "--json"]).returncode == 0  # cache
+    assert pamid_cli(["fit", fewer, "--intervals", "wald", "--out", out]).returncode == 0
+    (out / "notes.txt").write_text("mine")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
     proc = subprocess.Popen(
         [sys.executable, "-m", "pamid._cli", "fit", str(many), "--intervals", "wald",
          "--max-plots", "40", "--out", str(out)], stderr=subprocess.PIPE, text=True,
@@ -99,4 +106,5 @@ def test_sigterm_while_writing_leaves_no_temporary_files(tmp_path, pamid_cli):
     rest = proc.stderr.read()
     assert proc.wait(timeout=120) == 143, rest
     assert "pamid: terminated" in rest and "Traceback" not in rest
-    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fewer.csv", "many.csv", "out"]

@@ -240,7 +240,7 @@ def _rms(x) -> float:
 
 def cmd_check_decays(args) -> int:
     from .._dynamics._decay_data import load_decay
-    from .._io import json_ready, refuse_overwrite_input, write_text_atomic
+    from .._io import final_place, json_ready, write_text_atomic
 
     quiet = args.json
     t_start = time.perf_counter()
@@ -281,8 +281,7 @@ def cmd_check_decays(args) -> int:
             }
     if args.out:
         out = Path(args.out)
-        refuse_overwrite_input(out / "check_decays.json", [args.decay, args.model_json])
-        _stage(f"writing plots to {out}", quiet)
+        _stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _plot(curves, rows, out, args.max_plots)
         if pred is not None:
             for i, trial in enumerate(posterior.trials[: args.max_plots]):

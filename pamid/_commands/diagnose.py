@@ -49,7 +49,7 @@ def register(subparsers) -> None:
 def cmd_diagnose(args) -> int:
     from .._diagnose._api import diagnose
     from .._diagnose._report import format_report, plot_residuals, plot_time_order
-    from .._io import refuse_overwrite_input, write_text_atomic
+    from .._io import final_place, write_text_atomic
 
     if args.folds < 2:
         raise ValueError("--folds must be at least 2")
@@ -70,16 +70,12 @@ def cmd_diagnose(args) -> int:
     out_json = d.to_dict()
     if args.out:
         out = Path(args.out)
-        for name in ("diagnosis.json", "report.txt", "residuals_before_after.png",
-                     "residual_time_order.png"):
-            refuse_overwrite_input(out / name, [args.data])
-        out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(out / "diagnosis.json", json.dumps(out_json, indent=2) + "\n")
         write_text_atomic(out / "report.txt", format_report(d) + "\n")
         plot_residuals(d, out / "residuals_before_after.png")
         plot_time_order(d, out / "residual_time_order.png")
         progress(f"wrote diagnosis.json, report.txt, residuals_before_after.png, "
-                 f"residual_time_order.png to {out}/")
+                 f"residual_time_order.png to {final_place(out)}/")
     if args.json:
         print(json.dumps(out_json))
     else:

@@ -167,7 +167,7 @@ def _allow_negative_numbers(parser) -> None:
 def cmd_lifting_mass(args) -> int:
     import numpy as np
 
-    from .._io import write_text_atomic
+    from .._io import final_place, write_text_atomic
     from .._models._sarosi import table_3_1
     from .._sim._lifting_mass import (
         DEFAULT_HYSTERESIS_N_PER_BAR,
@@ -309,7 +309,7 @@ def cmd_lifting_mass(args) -> int:
                                      "displacement_mm": FIG_3_6["displacement_mm"]}
     if args.out:
         out = Path(args.out)
-        _stage(f"writing the plot to {out}", quiet)
+        _stage(f"writing the plot to {final_place(out)}", quiet)
         _plot_lifting_mass(t, s, force, c, eq, m * g, settle, payload, out / "lifting_mass.png")
         payload["plots"] = ["lifting_mass.png"]
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
@@ -418,7 +418,7 @@ def _plot_lifting_mass(t, s, force, c, eq, weight, settle, d, path) -> None:
 def cmd_damping(args) -> int:
     from .._dynamics._decay import analyze_decays
     from .._dynamics._decay_data import load_decay
-    from .._io import refuse_overwrite_input, write_text_atomic
+    from .._io import final_place, write_text_atomic
 
     quiet = args.json
     t_start = time.perf_counter()
@@ -432,8 +432,7 @@ def cmd_damping(args) -> int:
     payload = report.to_dict()
     if args.out:
         out = Path(args.out)
-        refuse_overwrite_input(out / "damping.json", [args.decay])
-        _stage(f"writing plots to {out}", quiet)
+        _stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _plot_decays(data, report, out, args.max_plots)
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
     if args.out:

@@ -3,8 +3,8 @@
 Exit codes of every command: 0 done; 1 a fit that did not converge (reported, not dropped);
 2 bad input or a bad output place (one line naming the file, column and row); 3 an internal
 failure: out of memory, or a defect in pamid (one line, never a traceback; ``PAMID_DEBUG=1``
-re-raises it); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM; the writers' temporary
-files are removed); 141 stdout closed early (``pamid fit --json | head``:
+re-raises it); 130 interrupted (Ctrl-C) and 143 terminated (SIGTERM), with ``--out`` left
+as it was (:func:`pamid._io.output_folder`); 141 stdout closed early (``pamid fit --json | head``:
 128 + SIGPIPE, what a shell reports for a program ended by a closed pipe), with nothing
 printed.
 """
@@ -24,7 +24,8 @@ EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 class Terminated(BaseException):
     """SIGTERM arrived: raised in the main thread so that every ``finally`` and every
-    writer's clean-up runs (no half-written temporary files are left behind)."""
+    clean-up runs (the staging folder of :func:`pamid._io.output_folder` is removed, no
+    half-written file is left behind)."""
 
 
 def _on_sigterm(signum, frame):

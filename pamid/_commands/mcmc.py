@@ -84,7 +84,7 @@ def run_mcmc_fit(args, bench) -> tuple[dict, int]:
     """
     import jax
 
-    from .._io import refuse_overwrite_input, write_text_atomic
+    from .._io import final_place, write_text_atomic
     from .._sampling._mcmc import fit_mcmc
 
     quiet = bool(getattr(args, "json", False))
@@ -116,10 +116,9 @@ def run_mcmc_fit(args, bench) -> tuple[dict, int]:
     payload["n_censored_dropped"] = bench.n_censored
     if getattr(args, "out", None):
         out = Path(args.out)
-        refuse_overwrite_input(out / "fit.json", [payload["source"]])
         n_files = min(getattr(args, "max_plots", 6), result.n_muscles)
         _stage(f"writing NetCDF and plots for {n_files} of {result.n_muscles} muscle(s) "
-               f"to {out}", quiet)
+               f"to {final_place(out)}", quiet)
         payload["netcdf"] = result.save_netcdf(out, muscles=range(n_files))
         payload["plots"] = _write_plots(result, bench, out, n_files)
     payload["seconds"] = round(time.perf_counter() - t0, 3)

@@ -105,7 +105,7 @@ def cmd_positioning(args) -> int:
         wald_draws,
     )
     from .._control._sliding_mode import LINEAR_GRADIENT, SlidingModeController, plain_switching
-    from .._io import refuse_overwrite_input, write_text_atomic
+    from .._io import final_place, write_text_atomic
     from .._models._sarosi import table_3_1, table_3_1_fit_json
 
     quiet = args.json
@@ -200,10 +200,7 @@ def cmd_positioning(args) -> int:
         }
     if args.out:
         out = Path(args.out)
-        if args.fit:
-            refuse_overwrite_input(out / "positioning.json", [args.fit])
-            refuse_overwrite_input(out / "positioning.png", [args.fit])
-        _stage(f"writing the plot to {out}", quiet)
+        _stage(f"writing the plot to {final_place(out)}", quiet)
         _plot(run, payload, out / "positioning.png")
         payload["plots"] = ["positioning.png"]
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
