@@ -277,7 +277,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     problem = StaticProblem(bench, spec, n_folds=n_folds)
     _check_baseline(bench, spec, problem.baseline)
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
-                            progress=progress)
+                            progress=progress, unphysical=problem.unphysical)
     base, final = result["baseline"], result["final"]
     table = _long_table(problem, base, final)
     covs = [*problem.covariates, "force_N"]

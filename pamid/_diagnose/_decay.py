@@ -18,9 +18,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ._effects import DECAY_EFFECTS
 from ._select import SetFit, forward_select
 
-COVARIATE_OF = {"coulomb_friction": "velocity_rad_s", "drift": "elapsed_s"}
+COVARIATE_OF = {e.name: e.covariate for e in DECAY_EFFECTS}
+_DEFINITION = {e.name: e for e in DECAY_EFFECTS}
 
 
 def _set_fit(model_fit) -> SetFit:
@@ -53,8 +55,16 @@ def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
                                 inertia_kg_m2, sets, n_folds=n_folds, baseline=report.fits)
         return [_set_fit(f) for f in fits]
 
-    result = forward_select(["coulomb_friction", "drift"], evaluate, COVARIATE_OF,
-                            progress=progress)
+    def unphysical(fit, name):
+        e = _DEFINITION[name]
+        for trial, f in zip(data.trials, fit.extra["model"].trials, strict=True):
+            msg = e.violation(float(f.params.get(e.key, np.nan)))
+            if msg is not None:
+                return f"trial {trial}: {msg}"
+        return None
+
+    result = forward_select(list(COVARIATE_OF), evaluate, COVARIATE_OF,
+                            progress=progress, unphysical=unphysical)
     base, final = result["baseline"], result["final"]
     table = _long_table(data, base, final)
     covs = [c for c in ("angle_rad", "velocity_rad_s", "elapsed_s", "direction",
@@ -67,11 +77,10 @@ def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
     for trial, f in zip(data.trials, final.extra["model"].trials, strict=True):
         effects = {}
         for name in final.effects:
-            key = "coulomb_Nm" if name == "coulomb_friction" else "drift_rad_s"
-            unit = "N·m" if name == "coulomb_friction" else "rad/s"
-            lo, hi = f.params_ci95.get(key, (np.nan, np.nan))
-            effects[name] = {key: {"value": float(f.params[key]), "ci95": [lo, hi],
-                                   "unit": unit}}
+            e = _DEFINITION[name]
+            lo, hi = f.params_ci95.get(e.key, (np.nan, np.nan))
+            effects[name] = {e.key: {"value": float(f.params[e.key]), "ci95": [lo, hi],
+                                     "unit": e.constant.unit}}
         constants.append({"trial": trial, "effects": effects,
                           "base": {k: float(f.params[k]) for k in
                                    ("zeta", "omega_n_rad_s", "equilibrium_rad")

@@ -44,8 +44,17 @@ def format_report(d) -> str:
                  "lower cross-validated RMSE = significant):")
     lines.append(f"     {'effect':<28} {'covariate':<20} {'ΔBIC':>10} {'CV RMSE':>10}  significant")
     for r in d.candidates:
+        verdict = "yes" if r["significant"] else (
+            "no (not physical)" if r.get("unphysical") else "no")
         lines.append(f"     {r['effect']:<28} {r['covariate']:<20} {r['delta_bic']:>10.1f} "
-                     f"{r['cv_rmse']:>10.4g}  {'yes' if r['significant'] else 'no'}")
+                     f"{r['cv_rmse']:>10.4g}  {verdict}")
+    # Effects the data would support but whose constants are past a physical bound.
+    seen = set()
+    for s in d.steps:
+        for r in s["candidates"]:
+            if r.get("unphysical") and r["delta_bic"] < -10 and r["effect"] not in seen:
+                seen.add(r["effect"])
+                lines.append(f"     {r['unphysical']}; not selected")
     lines.append("")
     lines.append("3. Forward selection:")
     for s in d.steps:
@@ -64,6 +73,8 @@ def format_report(d) -> str:
         lines.append(f"     − {r['effect']} dropped in the backward check (given the others: "
                      f"ΔBIC without it {r['delta_bic_without']:+.1f}, held-out curves p = "
                      f"{_p(r['cv_p_value'])})")
+        if r.get("unphysical"):
+            lines.append(f"       {r['unphysical']}")
     lines.append(f"   selected: {', '.join(d.selected) if d.selected else 'none'}")
     if d.selected:
         lines.append("   constants with 95 % intervals:")

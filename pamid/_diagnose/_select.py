@@ -17,6 +17,10 @@ cannot model rather than a library effect in another form. A backward pass then 
 one at a time, any selected effect that, given the others, no longer lowers the BIC by
 :data:`BIC_THRESHOLD` or no longer predicts the held-out curves better curve by curve (a
 one-sided Wilcoxon signed-rank test on each curve's held-out error, p < :data:`CV_P`).
+
+A candidate whose fitted constants land at or past a physical bound (a negative compliance,
+a hysteresis loop run backwards: :mod:`pamid._diagnose._effects`) is never significant,
+however much it lowers the BIC; its row says what it would have needed (``unphysical``).
 """
 
 from __future__ import annotations
@@ -103,8 +107,12 @@ def forward_select(
     *,
     max_effects: int = 4,
     progress: Callable[[str], None] | None = None,
+    unphysical: Callable[[SetFit, str], str | None] | None = None,
 ) -> dict:
-    """Run the forward selection; return the baseline, the steps and the final fit."""
+    """Run the forward selection; return the baseline, the steps and the final fit.
+
+    ``unphysical(fit, name)``: why effect ``name``'s constants in ``fit`` are not physical,
+    or None; such a candidate is not significant."""
     say = progress or (lambda _msg: None)
     selected: tuple[str, ...] = ()
     say("fitting the baseline and every candidate")
@@ -118,14 +126,16 @@ def forward_select(
         for name, fit in zip(remaining, fits, strict=True):
             d_bic = fit.bic - current.bic
             p_cv = held_out_p_value(current, fit)
-            significant = (
+            supported = (
                 bool(np.all(fit.converged))
                 and d_bic < -BIC_THRESHOLD
                 and fit.cv_rmse < current.cv_rmse
             )
+            why = unphysical(fit, name) if unphysical is not None else None
             rows.append({"effect": name, "covariate": covariate_of.get(name, name),
                          "delta_bic": d_bic, "cv_rmse": fit.cv_rmse, "cv_p_value": p_cv,
-                         "rmse": fit.rmse, "significant": significant, "fit": fit})
+                         "rmse": fit.rmse, "significant": supported and why is None,
+                         "unphysical": why, "fit": fit})
         rows.sort(key=lambda r: r["delta_bic"])
         choice = _choose(rows)
         alternatives = [] if choice is None else [
@@ -149,24 +159,46 @@ def forward_select(
     while selected:
         say(f"backward check of {', '.join(selected)}")
         reduced = [tuple(e for e in selected if e != r) for r in selected]
-        fits = evaluate(reduced) if len(selected) > 1 else [baseline]
-        support = [f.bic - current.bic for f in fits]
-        p_cv = [held_out_p_value(f, current) for f in fits]
+        # A library effect is judged among the library effects alone: a generic covariate
+        # added after it may absorb it (a smooth function of the contraction holds a sensor
+        # offset's a4·δ·κ), and would then name in another form what the library models.
+        library = tuple(e for e in selected if not _generic(e))
+        judged = [(library, tuple(e for e in library if e != r))
+                  if not _generic(r) and len(library) < len(selected) else (None, red)
+                  for r, red in zip(selected, reduced, strict=True)]
+        wanted = list(dict.fromkeys(
+            [*reduced, *(s for pair in judged for s in pair if s is not None)]))
+        todo = [s for s in wanted if s]
+        fitted = dict(zip(todo, evaluate(todo), strict=True)) if todo else {}
+        fitted[()] = baseline
+        fitted[tuple(selected)] = current
+        fits = [fitted[r] for r in reduced]
+        refs = [fitted[a] if a is not None else current for a, _ in judged]
+        support = [fitted[b].bic - ref.bic for (_, b), ref in zip(judged, refs, strict=True)]
+        p_cv = [held_out_p_value(fitted[b], ref) for (_, b), ref in zip(judged, refs,
+                                                                        strict=True)]
+        bad = [unphysical(current, r) if unphysical is not None else None for r in selected]
         weak = [i for i in range(len(selected))
-                if support[i] < BIC_THRESHOLD or p_cv[i] >= CV_P]
+                if support[i] < BIC_THRESHOLD or p_cv[i] >= CV_P or bad[i] is not None]
         if not weak:
             break
         weakest = max(weak, key=lambda i: (np.nan_to_num(p_cv[i], nan=0.0), -support[i]))
+        weakest = next((i for i in weak if bad[i] is not None), weakest)
         dropped.append({"effect": selected[weakest], "delta_bic_without": support[weakest],
-                        "cv_p_value": p_cv[weakest]})
+                        "cv_p_value": p_cv[weakest], "unphysical": bad[weakest]})
         selected, current = reduced[weakest], fits[weakest]
     return {"baseline": baseline, "final": current, "selected": list(selected),
             "steps": steps, "dropped": dropped}
 
 
+def _generic(name: str) -> bool:
+    """A generic ``covariate:<column>`` effect rather than a library effect."""
+    return name.startswith("covariate:")
+
+
 def _choose(rows: list[dict]) -> dict | None:
     significant = [r for r in rows if r["significant"]]
-    library = [r for r in significant if not r["effect"].startswith("covariate:")]
+    library = [r for r in significant if not _generic(r["effect"])]
     if library:
         return library[0]
     return significant[0] if significant else None

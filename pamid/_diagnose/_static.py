@@ -12,24 +12,30 @@ effect                 added to the force (N)                   constants
 ``temperature``        (τ0 + τ1·p)·ΔT                           τ0 (N/K), τ1 (N/(bar·K))
 ``drift``              δ1·t + δ2·t²  (load-cell zero drift)     δ1 (N/h), δ2 (N/h²)
 ``viscous_damping``    −g·v  (Cullinan's −G·ẏ, eq. 3)           g (N·s/mm or N·s/%)
+``transient``          g·Σ Δp_k·exp(−(t − t_k)/τ), valve steps  g (N/kPa), τ (s, grid)
+``softening``          −s·(1 − exp(−repeat/r))·F_model           s (1), r (repeats, grid)
 ``compliance``         F solves F = F_model(p, x + c·F)         c (mm/N or %/N)
+``sensor_offset``      F = F_model(p + δ, x)                    δ (kPa)
 ``covariate:<col>``    b1·P1(z) + b2·P2(z) + b3·P3(z)           b1, b2, b3 (N)
 =====================  =======================================  ==========================
+
+Each effect is one definition in :mod:`pamid._diagnose._effects` (its constants, units,
+physical bounds, source and the virtual bench's injector); this module reads that registry.
 
 For ``covariate:<col>`` z is the column scaled to [−1, 1] over the file and P_k are Legendre
 polynomials: a smooth function of any numeric column, so that an effect outside the library
 is still traced to its covariate.
 
 Every candidate set is fitted in one compiled call: lanes = (set × muscle × fold), all with
-the same parameter layout — the base constants, the compliance c, and ``n_slots`` linear
-effect constants whose feature columns each lane gathers from the muscle's full feature
-matrix — and a 0/1 mask; masked constants stay at zero. The solver is Levenberg–Marquardt on
-the normal equations with Marquardt's diagonal scaling, started from the baseline fit.
+the same parameter layout — the base constants, one constant per transform effect (the
+compliance c, the sensor offset δ), and ``n_slots`` linear effect constants whose feature
+columns each lane gathers from the muscle's full feature matrix — and a 0/1 mask; masked
+constants stay at zero. The solver is Levenberg–Marquardt on the normal equations with
+Marquardt's diagonal scaling, started from the baseline fit.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 
@@ -42,14 +48,22 @@ from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
 from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
 from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
-from ._residual import legendre_basis, scaled
+from ._effects import (
+    STATIC_EFFECTS,
+    Effect,
+    FileContext,
+    MuscleContext,
+    moving_steps,
+    time_since_step,
+    transforms,
+)
 from ._select import SetFit
 
 N_FOLDS = 5
-COVARIATE_DEGREE = 3
 MAX_ITER = 60
 #: Stopping test of the refits (:func:`pamid._fit._engine.levenberg_marquardt`): the
 #: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
@@ -65,15 +79,6 @@ _IN_BASE_MODEL = {
 }
 
 
-@dataclasses.dataclass(frozen=True)
-class Effect:
-    name: str
-    covariate: str
-    param_names: tuple[str, ...]
-    units: tuple[str, ...]
-    columns: tuple[int, ...]  # feature columns; empty for compliance
-
-
 def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFrame:
     """Covariates of one muscle's rows (in file order), from the file's curve structure.
 
@@ -82,8 +87,10 @@ def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFr
     contract), and when the file has time ``elapsed_s`` (continuous across trials whose
     clock restarts), the rate of contraction ``speed_mm_s`` (or ``speed_pct_s`` without
     l0; zero at a held length) and, where the pressure moves at a held length, the
-    pressure rate ``pressure_rate_kPa_s``; ``repeat``, the trial's (or cycle's) order among
-    the repeats of its setting, when there are repeats.
+    pressure rate ``pressure_rate_kPa_s`` and the time since the last step of the moving
+    pressure in its trial ``time_since_step_s`` (:func:`pamid._diagnose._effects.
+    time_since_step`); ``repeat``, the trial's (or cycle's) order among the repeats of its
+    setting, when there are repeats.
     """
     out = frame.copy()
     out["direction"] = curves.direction
@@ -102,6 +109,11 @@ def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFr
         out[name] = np.nan_to_num(rate)
         if not sweep.all():
             out["pressure_rate_kPa_s"] = np.nan_to_num(np.where(sweep, 0.0, curves.rate))
+            steps = moving_steps(frame["pressure_kPa"].to_numpy(float), curves.moving,
+                                 curves.trial)
+            if np.any(steps):
+                out["time_since_step_s"] = time_since_step(steps, curves.elapsed_s,
+                                                           curves.trial)
     if "trial" in frame or "cycle" in frame:
         out["repeat"] = curves.repeat
     return out
@@ -119,34 +131,47 @@ class StaticProblem:
     def __init__(self, bench, spec: ModelSpec, *, n_folds: int = N_FOLDS):
         self.spec = spec
         self.bench = bench
-        frames, curve_ids = [], []
+        frames, curve_ids, muscle_curves = [], [], []
         curves = bench.curves  # the file's one curve structure (pamid._data._curves)
         for rows_idx in _muscle_rows(bench):
             rows = bench.frame.iloc[rows_idx].reset_index(drop=True)
             c = curves.take(rows_idx)
             frames.append(derive_covariates(rows, spec, c))
             curve_ids.append(c.curve)
+            muscle_curves.append(c)
         self.frames = frames
         allrows = pd.concat(frames, ignore_index=True)
         self.covariates = self._covariate_names(allrows)
-        self.effects = self._effects(allrows)
-        groups, feats, folds = [], [], []
-        for f, curve in zip(frames, curve_ids, strict=True):
-            x = spec.x_from_frame(f, bench.path)
-            groups.append((x, f["force_N"].to_numpy(float)))
-            fold = _folds(curve, n_folds)
+        groups = [(spec.x_from_frame(f, bench.path), f["force_N"].to_numpy(float))
+                  for f in frames]
+        self.data = pack(groups, curve_ids)
+        # The baseline: the model alone, with its statistics, so that a fit the data cannot
+        # determine is known (and said why) before any candidate is refitted on top of it.
+        self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
+                                          muscles=tuple(bench.muscles))
+        self.theta0 = self.baseline.theta
+        self.baseline_converged = self.baseline.converged
+        self.l0_mm = [bench.l0_mm.get(m_id) for m_id in bench.muscles]
+        self.file = self._file_context(allrows, muscle_curves)
+        self.muscles = [self._muscle_context(i, f, c, x)
+                        for i, (f, c, (x, _)) in enumerate(zip(frames, muscle_curves, groups,
+                                                               strict=True))]
+        self.effects = self._effects()
+        self._choose_grids(groups)
+        feats, folds = [], []
+        for i, (f, c) in enumerate(zip(frames, muscle_curves, strict=True)):
+            fold = _diagnosis_folds(c.curve, c.trial, n_folds)
             folds.append(fold)
             # Features for all data, then for each fold with the covariates clamped to the
             # range of that fold's training samples: a held-out curve beyond that range is
             # predicted at the range's edge rather than by extrapolating a polynomial.
-            per_fold = [self._features(f)]
+            per_fold = [self._features(i)]
             for k in range(int(fold.max()) + 1):
                 train = f[fold != k]
                 clip = {c: (float(train[c].min()), float(train[c].max()))
                         for c in self.covariates if c in train}
-                per_fold.append(self._features(f, clip))
+                per_fold.append(self._features(i, clip))
             feats.append(per_fold)
-        self.data = pack(groups, curve_ids)
         m, n = self.data.y.shape
         self.n_folds = max(len(ft) for ft in feats) - 1
         self.n_features = feats[0][0].shape[1]
@@ -161,63 +186,103 @@ class StaticProblem:
         self.curve_used = np.zeros((m, self.n_curves), bool)
         for i in range(m):
             self.curve_used[i, np.unique(curve[i][curve[i] >= 0])] = True
-        # The baseline: the model alone, with its statistics, so that a fit the data cannot
-        # determine is known (and said why) before any candidate is refitted on top of it.
-        self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
-                                          muscles=tuple(bench.muscles))
-        self.theta0 = self.baseline.theta
-        self.baseline_converged = self.baseline.converged
-        self.l0_mm = [bench.l0_mm.get(m_id) for m_id in bench.muscles]
 
     # -- covariates and features ------------------------------------------------------------
 
     def _covariate_names(self, rows: pd.DataFrame) -> list[str]:
         names = ["direction", "pressure_kPa", self.spec.contraction_column]
         for c in ("elapsed_s", "speed_mm_s", "speed_pct_s", "pressure_rate_kPa_s",
-                  "temperature_C", "cycle", "repeat"):
+                  "time_since_step_s", "temperature_C", "cycle", "repeat"):
             if c in rows:
                 names.append(c)
         names += [c for c in self.bench.covariates if c in rows and c not in names
                   and c not in self.spec.columns]
         return [c for c in names if rows[c].nunique() > 1]
 
-    def _effects(self, rows: pd.DataFrame) -> list[Effect]:
+    def _file_context(self, rows: pd.DataFrame, muscle_curves) -> FileContext:
+        p = rows["pressure_kPa"].to_numpy(float)
+        return FileContext(
+            spec=self.spec, covariates=self.covariates,
+            ranges={c: (float(rows[c].min()), float(rows[c].max())) for c in self.covariates},
+            temperature_mean_C=(float(rows["temperature_C"].mean())
+                                if "temperature_C" in rows else 0.0),
+            pressure_median_bar=float(np.median(p)) / KPA_PER_BAR,
+            pressure_max_kPa=float(np.max(np.abs(p))),
+            unit_x="%" if self.spec.contraction_column == "contraction_pct" else "mm",
+            has_pressure_steps="time_since_step_s" in self.covariates,
+            max_repeat=int(rows["repeat"].max()) if "repeat" in rows else 0,
+            distinct={c: int(rows[c].nunique()) for c in self.covariates},
+        )
+
+    def _muscle_context(self, i, f, c, x) -> MuscleContext:
+        time = c.elapsed_s if np.all(np.isfinite(c.elapsed_s)) else None
+        steps = (moving_steps(f["pressure_kPa"].to_numpy(float), c.moving, c.trial)
+                 if time is not None else np.zeros(len(f)))
+        speed = next((s for s in ("speed_mm_s", "speed_pct_s") if s in self.covariates), None)
+        base = np.asarray(self.spec.predict(self.theta0[i], x))
+        i_p, per_kpa = _inputs(self.spec)["pressure"]
+        slope = np.inf
+        if per_kpa:  # ∂F/∂p in N/kPa, by a difference of 1 kPa
+            up = list(x)
+            up[i_p] = np.asarray(x[i_p]) + per_kpa
+            slope = float(np.max(np.asarray(self.spec.predict(self.theta0[i], tuple(up)))
+                                 - base))
+        return MuscleContext(
+            frame=f, baseline_N=base, steps=steps, trial=np.asarray(c.trial), time_s=time,
+            file=self.file, speed=speed, l0_mm=self.l0_mm[i], max_dF_dp_N_per_kPa=slope)
+
+    def _effects(self) -> list[Effect]:
+        """The registry's effects (:data:`pamid._diagnose._effects.STATIC_EFFECTS`) that
+        this file has the covariates for, with their feature columns or transform slot."""
         effects: list[Effect] = []
         col = 0
-        unit_x = "%" if self.spec.contraction_column == "contraction_pct" else "mm"
-
-        def add(name, covariate, params, units):
-            nonlocal col
-            cols = tuple(range(col, col + len(params)))
-            col += len(params)
-            effects.append(Effect(name, covariate, params, units, cols))
-
-        if "direction" in self.covariates:
-            add("hysteresis", "direction", ("h0", "h1"), ("N", "N/bar"))
-        if "temperature_C" in self.covariates:
-            add("temperature", "temperature_C", ("tau0", "tau1"), ("N/K", "N/(bar·K)"))
-        if "elapsed_s" in self.covariates:
-            add("drift", "elapsed_s", ("delta1", "delta2"), ("N/h", "N/h²"))
-        speed = next((c for c in ("speed_mm_s", "speed_pct_s") if c in self.covariates), None)
-        if speed is not None and len(self.spec.columns) < 3:  # Cullinan with G has it already
-            unit = "N·s/mm" if speed == "speed_mm_s" else "N·s/%"
-            add("viscous_damping", speed, ("g",), (unit,))
-        for c in self.covariates:
-            if c == "direction":
-                continue
-            top = min(COVARIATE_DEGREE, rows[c].nunique() - 1)
-            degrees = [k for k in range(1, top + 1)
-                       if k not in _IN_BASE_MODEL.get((self.spec.name, c), ())]
-            if degrees:
-                add(f"covariate:{c}", c, tuple(f"b{k}" for k in degrees), ("N",) * len(degrees))
-        effects.append(Effect("compliance", "force_N", ("c",), (f"{unit_x}/N",), ()))
-        self._ranges = {c: (float(rows[c].min()), float(rows[c].max()))
-                        for c in self.covariates}
-        self._t_mean = float(rows["temperature_C"].mean()) if "temperature_C" in rows else 0.0
+        slot = {d.name: j for j, d in enumerate(transforms())}
+        for d in STATIC_EFFECTS:
+            for name, covariate, consts in d.members(self.file):
+                if d.transform is not None:
+                    cols, tr = (), slot[d.name]
+                else:
+                    cols, tr = tuple(range(col, col + len(consts))), None
+                    col += len(consts)
+                effects.append(Effect(name, covariate, tuple(c.name for c in consts),
+                                      tuple(c.unit for c in consts), cols, d, tr, d.grid))
+        self.grid_value = {e.name: [1.0] * len(self.frames) for e in effects if e.grid}
         return effects
 
-    def _features(self, f: pd.DataFrame, clip: dict | None = None) -> np.ndarray:
-        p = f["pressure_kPa"].to_numpy(float) / KPA_PER_BAR
+    def _choose_grids(self, groups) -> None:
+        """Per muscle, the grid constant of each effect that has one (the transient's τ,
+        the softening's r): the grid value whose column, of the allowed sign, best explains
+        the baseline's residual once the base model's own directions are projected out."""
+        for e in self.effects:
+            if e.grid is None:
+                continue
+            lower = e.definition.constants[0].lower
+            for i, (m, (x, y)) in enumerate(zip(self.muscles, groups, strict=True)):
+                values = np.atleast_1d(e.definition.grid_values(self.file, m))
+                jac = np.asarray(jax.jacfwd(lambda th, x=x: self.spec.predict(th, x))(
+                    self.theta0[i]))
+                q, _ = np.linalg.qr(np.column_stack([jac, np.ones(len(y))]))
+                r = y - m.baseline_N
+                r = r - q @ (q.T @ r)
+                best, best_gain, best_any, any_gain = values[0], -1.0, values[0], -1.0
+                for v in values:
+                    z = np.asarray(e.definition.features(m, lambda c, f=m.frame: f[c].to_numpy(
+                        float), float(v))[0])
+                    z = z - q @ (q.T @ z)
+                    zz = float(z @ z)
+                    if zz <= 0:
+                        continue
+                    coef = float(z @ r) / zz
+                    gain = coef**2 * zz
+                    if gain > any_gain:
+                        best_any, any_gain = v, gain
+                    if coef >= lower and gain > best_gain:
+                        best, best_gain = v, gain
+                self.grid_value[e.name][i] = float(best if best_gain >= 0 else best_any)
+
+    def _features(self, i: int, clip: dict | None = None) -> np.ndarray:
+        m = self.muscles[i]
+        f = m.frame
 
         def col(name):
             v = f[name].to_numpy(float)
@@ -227,22 +292,13 @@ class StaticProblem:
 
         cols = []
         for e in self.effects:
-            if e.name == "hysteresis":
-                d = col("direction")
-                cols += [-d, -d * p]
-            elif e.name == "temperature":
-                dt = col("temperature_C") - self._t_mean
-                cols += [dt, dt * p]
-            elif e.name == "drift":
-                h = col("elapsed_s") / 3600.0
-                cols += [h, h**2]
-            elif e.name == "viscous_damping":
-                cols += [-col(e.covariate)]
-            elif e.name.startswith("covariate:"):
-                lo, hi = self._ranges[e.covariate]
-                z = scaled(col(e.covariate), lo, hi)
-                basis = legendre_basis(z, COVARIATE_DEGREE)
-                cols += [basis[int(name[1:]) - 1] for name in e.param_names]
+            if e.transform is not None:
+                continue
+            g = self.grid_value[e.name][i] if e.grid is not None else None
+            if e.definition.family is not None:
+                cols += e.definition.features(m, col, g, e)
+            else:
+                cols += e.definition.features(m, col, g)
         return np.column_stack(cols) if cols else np.zeros((len(f), 0))
 
     def effect(self, name: str) -> Effect:
@@ -259,6 +315,38 @@ class StaticProblem:
     def covariate_of(self) -> dict[str, str]:
         return {e.name: e.covariate for e in self.effects}
 
+    def constants_of(self, fit: SetFit, name: str, i: int) -> dict[str, float]:
+        """The fitted constants of effect ``name`` in ``fit`` for muscle ``i``, by name."""
+        return {p: float(fit.extra["params"][i][j])
+                for p, j in zip(self.effect(name).param_names, self._index(fit, name),
+                                strict=True)}
+
+    def _index(self, fit: SetFit, name: str) -> list[int]:
+        """Positions of effect ``name``'s constants in the lanes' parameter vector."""
+        k = self.spec.n_params
+        e = self.effect(name)
+        if e.transform is not None:
+            return [k + e.transform]
+        start = k + len(transforms())
+        for other in fit.effects:
+            o = self.effect(other)
+            if other == name:
+                return [start + j for j in range(len(e.columns))]
+            if o.transform is None:
+                start += len(o.columns)
+        raise KeyError(name)
+
+    def unphysical(self, fit: SetFit, name: str) -> str | None:
+        """Why effect ``name``'s constants in ``fit`` are not physical (the first muscle
+        where they are not), or None."""
+        e = self.effect(name)
+        for i, m in enumerate(self.muscles):
+            msg = e.definition.violation(self.constants_of(fit, name, i), e, self.file, m)
+            if msg is not None:
+                who = f"muscle {self.bench.muscles[i]}: " if len(self.muscles) > 1 else ""
+                return who + msg
+        return None
+
     # -- fitting -----------------------------------------------------------------------------
 
     def evaluate(self, sets: list[tuple[str, ...]]) -> list[SetFit]:
@@ -271,8 +359,8 @@ class StaticProblem:
         """
         m, n = self.data.y.shape
         k = self.spec.n_params
-        slots = [[c for name in s if name != "compliance" for c in self.effect(name).columns]
-                 for s in sets]
+        slots = [[c for name in s for c in self.effect(name).columns] for s in sets]
+        n_tr = len(transforms())
         n_slots = max(1, max(len(s) for s in slots))
         n_slots = 1 << (n_slots - 1).bit_length()  # buckets: fewer shapes to compile
         folds = self.n_folds + 1
@@ -282,15 +370,24 @@ class StaticProblem:
                                                                    lanes_fold))
         cols = np.zeros((len(sets), n_slots), int)
         colmask = np.zeros((len(sets), n_slots))
-        comp = np.zeros(len(sets))
+        trmask = np.zeros((len(sets), n_tr))
+        implicit = np.zeros(len(sets), bool)
+        hidden = np.zeros(len(sets), int)
         for i, s in enumerate(slots):
             cols[i, : len(s)] = s
             colmask[i, : len(s)] = 1.0
-            comp[i] = float("compliance" in sets[i])
+            for name in sets[i]:
+                e = self.effect(name)
+                hidden[i] += e.hidden
+                if e.transform is not None:
+                    trmask[i, e.transform] = 1.0
+                    implicit[i] |= e.definition.implicit
+        colmask = np.concatenate([trmask, colmask], axis=1)
         shared = self._shared_arrays()
-        # Lanes with and without the compliance are solved by two compiled functions: the
-        # implicit force law costs four Newton steps that the other lanes do not need.
-        lane_comp = comp[lanes_set] > 0
+        # Lanes with and without an implicit transform (the compliance) are solved by two
+        # compiled functions: the implicit force law costs four Newton steps that the other
+        # lanes do not need.
+        lane_comp = implicit[lanes_set]
         parts = {}
         for flag in (False, True):
             sel = np.flatnonzero(lane_comp == flag)
@@ -325,13 +422,14 @@ class StaticProblem:
                 (w_test * resid[lane] ** 2).ravel(), minlength=m * self.n_curves,
             ).reshape(m, self.n_curves)
             results.append(SetFit(
-                effects=tuple(s), sse=sse[full], n=n_used, k=rank[full],
+                effects=tuple(s), sse=sse[full], n=n_used, k=rank[full] + hidden[i],
                 cv_unit_sse=unit_sse[self.curve_used],
                 cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test > 0)),
                 converged=ok[full] & self.baseline_converged,
                 extra={"params": params[full], "jtj_inv": jtj_inv[full],
-                       "full_rank": rank[full] == k + len(slots[i]) + int(comp[i]),
-                       "residual": resid[full], "slots": slots[i], "compliance": comp[i] > 0},
+                       "full_rank": rank[full] == k + len(slots[i]) + int(trmask[i].sum()),
+                       "residual": resid[full], "slots": slots[i],
+                       "compliance": bool(implicit[i])},
             ))
         return results
 
@@ -344,6 +442,21 @@ class StaticProblem:
         return self._shared
 
 
+def _diagnosis_folds(curve: np.ndarray, trial: np.ndarray, n_folds: int) -> np.ndarray:
+    """Whole trials are held out, round robin in ``min(n_folds, trials)`` folds, where the
+    muscle has at least ``MIN_TRIALS_FOR_TRIAL_CV`` of them (as ``pamid compare`` does:
+    :func:`pamid._fit._compare.fold_plan`), so that a leftover shared by a trial's curves —
+    a transient, a softening, a trial's own zero — is not learned from the trial itself;
+    else whole curves (:func:`_folds`)."""
+    from .._fit._compare_options import MIN_TRIALS_FOR_TRIAL_CV
+
+    unit = np.unique(trial, return_inverse=True)[1]
+    n_trials = int(unit.max()) + 1 if len(unit) else 0
+    if n_trials >= MIN_TRIALS_FOR_TRIAL_CV:
+        return _folds(unit, min(n_folds, n_trials))
+    return _folds(curve, n_folds)
+
+
 def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
     """Whole curves are held out, round robin; a muscle with fewer curves than folds is cut
     into blocks of consecutive samples instead."""
@@ -354,16 +467,38 @@ def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
     return blocks % n_folds
 
 
-def _predict(spec, theta, c, x, with_compliance: bool):
-    """F_model with the rig's compliance: F = F_model(p, x + c·F), by Newton from c = 0."""
-    if not with_compliance:
-        return spec.predict(theta, x)
-    x0, x1, *rest = x
+def _inputs(spec) -> dict:
+    """Where a transform finds the model's inputs: the contraction's place in ``x`` and the
+    pressure's place with the model's pressure unit per kPa (``spec.to_x`` is linear)."""
+    cols = list(spec.columns)
+    io = {"contraction": cols.index(spec.contraction_column)
+          if spec.contraction_column in cols else min(1, len(cols) - 1)}
+    if "pressure_kPa" in cols:
+        i = cols.index("pressure_kPa")
+        one = spec.to_x(*[np.ones(1)] * len(cols))[i]
+        zero = spec.to_x(*[np.zeros(1)] * len(cols))[i]
+        io["pressure"] = (i, float(np.asarray(one - zero)[0]))
+    else:
+        io["pressure"] = (0, 0.0)
+    return io
+
+
+def _predict(spec, theta, tvals, x, implicit: bool):
+    """F_model with the transform effects (:func:`pamid._diagnose._effects.transforms`) at
+    the constants ``tvals``: F = F_model(θ; T(x, F)), by Newton from the plain model where a
+    transform depends on the force (the rig's compliance: F = F_model(p, x + c·F))."""
+    io = _inputs(spec)
+    defs = transforms()
 
     def model(f):
-        return spec.predict(theta, (x0, x1 + c * f, *rest))
+        xx = x
+        for d, v in zip(defs, tvals, strict=True):
+            xx = d.transform(xx, v, f, io)
+        return spec.predict(theta, xx)
 
     f = spec.predict(theta, x)
+    if not implicit:
+        return model(f)
     for _ in range(4):
         g, dg = jax.jvp(model, (f,), (jnp.ones_like(f),))
         f = f - (f - g) / (1.0 - dg)
@@ -413,7 +548,8 @@ def _fit_lanes(spec, with_compliance, shared, muscle, fold, cols, colmask):
     if name is not None and len(lane_devices()) == 1:
         # Through the exported program on disk when the command line keeps them: a new
         # process then skips tracing the lanes (most of a warm diagnosis of 1,000 rows).
-        key = ("diagnose_lanes", *name, with_compliance, MAX_ITER)
+        layout = tuple(d.name for d in transforms())
+        key = ("diagnose_lanes", *name, with_compliance, MAX_ITER, *layout)
         out = map_lanes(lambda *a: _export_cache.call(key, run, shared, *a), *lanes,
                         chunk=chunk)
     else:
@@ -421,7 +557,7 @@ def _fit_lanes(spec, with_compliance, shared, muscle, fold, cols, colmask):
     return jax.tree.map(lambda a: a[:n], out)
 
 
-def numerical_rank(jac, rtol: float = 1e-9):
+def numerical_rank(jac, rtol: float = RANK_RTOL):
     """Numerical rank of ``jac`` (n × p) with its columns scaled to unit length: the
     singular values above ``rtol`` times the largest. Constants the data cannot tell apart
     count once in the BIC.
@@ -451,14 +587,16 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
     feats = jnp.take(feat_all[muscle, fold], cols, axis=1)
     k = theta0.shape[0]
     s = feats.shape[1]
-    comp = 1.0 if with_compliance else 0.0
-    mask = jnp.concatenate([jnp.ones(k), jnp.full(1, comp), colmask])
+    n_tr = len(transforms())
+    # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
+    # linear slots'; masked constants stay at zero.
+    mask = jnp.concatenate([jnp.ones(k), colmask])
     sw = jnp.sqrt(w)
-    lin = feats * colmask[None, :]
+    lin = feats * colmask[None, n_tr:]
 
     def pred(params):
-        theta, c, phi = params[:k], params[k], params[k + 1:]
-        return _predict(spec, theta, c, x, with_compliance) + lin @ phi
+        theta, tv, phi = params[:k], params[k:k + n_tr], params[k + n_tr:]
+        return _predict(spec, theta, tv, x, with_compliance) + lin @ phi
 
     def resid(params):
         return sw * (y - pred(params))
@@ -468,12 +606,12 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
         # The effects' constants enter linearly: their Jacobian columns are the features;
         # only the base constants (and c) need forward-mode derivatives of the model.
         jac_nl = jax.jacfwd(
-            lambda tc: _predict(spec, tc[:k], tc[k], x, with_compliance))(params[: k + 1])
+            lambda tc: _predict(spec, tc[:k], tc[k:], x, with_compliance))(params[: k + n_tr])
         jac = -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]
         jac = jac * mask[None, :]
         return r, jac
 
-    params0 = jnp.concatenate([theta0, jnp.zeros(1 + s)])
+    params0 = jnp.concatenate([theta0, jnp.zeros(n_tr + s)])
     eye_off = jnp.diag(1.0 - mask)
     floor = jnp.sum(w > 0) * ATOL_N**2
     sol = levenberg_marquardt(normal, params0, mask, max_steps=MAX_ITER, rtol=RTOL,
@@ -497,10 +635,10 @@ _fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))
 
 
 def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[dict]:
-    """Per muscle: every selected effect's constants with Wald-t intervals."""
+    """Per muscle: every selected effect's constants with Wald-t intervals (a constant
+    chosen over a grid — the transient's τ — is given with its grid value and no interval)."""
     from .._fit._intervals import wald_interval
 
-    k = problem.spec.n_params
     out = []
     params, cov_un = fit.extra["params"], fit.extra["jtj_inv"]
     for i in range(len(params)):
@@ -510,24 +648,23 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
         if not fit.extra["full_rank"][i]:
             se = np.full_like(se, np.nan)  # some constants are not identifiable: no interval
         effects = {}
-        slot = 0
         for name in fit.effects:
             e = problem.effect(name)
             consts = {}
-            if name == "compliance":
-                idx = [k]
-            else:
-                idx = [k + 1 + slot + j for j in range(len(e.columns))]
-                slot += len(e.columns)
+            idx = problem._index(fit, name)
             for pname, unit, j in zip(e.param_names, e.units, idx, strict=True):
                 v = float(params[i][j])
                 lo, hi = wald_interval(v, se[j], dof, level)
                 consts[pname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit}
-            if name == "compliance" and e.units[0] == "%/N" and problem.l0_mm[i]:
-                scale = problem.l0_mm[i] / 100.0
-                c = consts["c"]
-                consts["c_mm_per_N"] = {"value": c["value"] * scale,
-                                        "ci95": [b * scale for b in c["ci95"]], "unit": "mm/N"}
+                if unit == "%/N" and problem.l0_mm[i]:  # a length per newton, also in mm
+                    scale = problem.l0_mm[i] / 100.0
+                    consts[f"{pname}_mm_per_N"] = {
+                        "value": v * scale, "ci95": [float(lo) * scale, float(hi) * scale],
+                        "unit": "mm/N"}
+            if e.grid is not None:
+                consts[e.grid.name] = {"value": problem.grid_value[name][i],
+                                       "ci95": [math.nan, math.nan], "unit": e.grid.unit,
+                                       "chosen_over": "grid"}
             effects[name] = consts
         out.append(effects)
     return out

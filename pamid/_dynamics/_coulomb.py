@@ -77,6 +77,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._diagnose._effects import DECAY_EFFECTS as _EFFECT_DEFINITIONS
 from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._intervals import wald_interval
 from .._sim._oscillator import _cos_sinc
@@ -92,8 +93,9 @@ __all__ = [
     "fold_labels",
 ]
 
-#: Candidate effects of :func:`fit_decay_models` and the constant each one adds.
-DECAY_EFFECTS = {"coulomb_friction": "coulomb_shift_rad", "drift": "drift_rad_s"}
+#: Candidate effects of :func:`fit_decay_models` and the constant each one adds, from the
+#: registry of effects (:data:`pamid._diagnose._effects.DECAY_EFFECTS`).
+DECAY_EFFECTS = {e.name: e.fit_name for e in _EFFECT_DEFINITIONS}
 #: The fixed parameter layout of every lane (the last two are the effects' constants).
 FIT_NAMES = (
     "zeta",

@@ -1,0 +1,564 @@
+"""The candidate effects of a diagnosis, one self-contained definition each.
+
+An :class:`EffectDefinition` says everything the diagnosis needs to know of one effect that
+a fitted force law F_model(θ; p, x) (Sárosi eq. 2.1, Cullinan eq. 3, any
+:class:`~pamid.ForceModel`) may lack: its name, the covariates it needs, its constants with
+units and physical bounds, how it changes the model — feature columns added to the force
+(the constants enter linearly) or a transform of the model's inputs (the constants enter
+the force law itself) — its physical reason and source (the docstring of its builder), and
+the injector of the virtual bench that hides it in data. :data:`STATIC_EFFECTS` is the
+registry that :class:`pamid._diagnose._static.StaticProblem` reads; adding an effect means
+adding one definition there. :data:`DECAY_EFFECTS` is the same for free decays
+(:mod:`pamid._dynamics._coulomb`).
+
+A constant chosen over a small grid (a time constant, a softening scale) is a
+``grid`` constant: it is chosen per muscle, once, where the baseline's residual (with the
+base model's Jacobian projected out) is best explained by the effect's column of a
+physically allowed sign, and it counts as one more constant in the BIC. The gain that
+multiplies the column is then fitted with everything else. A grid is used rather than a
+nonlinear fit because the lanes of the batched solve share one parameter layout in which
+every effect constant enters linearly. The transient's grid holds 17 time constants a
+factor √2 apart, from a quarter of the sample interval to 64 of them; where τ is about
+one sample interval, g and τ trade off against each other and their product (the
+relaxation's integral per kPa of step) is what the data fix.
+
+An effect whose fitted constants land at or past a physical bound is not reported as
+found: :meth:`EffectDefinition.violation` says what it would have needed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+
+from .._units import KPA_PER_BAR
+from ._residual import legendre_basis, scaled
+
+__all__ = [
+    "DECAY_EFFECTS",
+    "STATIC_EFFECTS",
+    "Constant",
+    "DecayEffect",
+    "Effect",
+    "EffectDefinition",
+    "moving_steps",
+]
+
+COVARIATE_DEGREE = 3
+#: A sample-to-sample change of the moving input larger than this many robust standard
+#: deviations of such changes is a step (the valve's pulse), not sensor noise.
+STEP_SIGMAS = 5.0
+#: Time constants of the ``transient`` grid, as multiples of the median sample interval.
+TRANSIENT_GRID = 2.0 ** (np.arange(-4.0, 13.0) / 2.0)
+#: Scales r (in repeats) of the ``softening`` grid.
+SOFTENING_GRID = (0.3, 1.0, 3.0, 10.0)
+#: Largest pressure-sensor offset that is still an offset, as a share of the largest
+#: logged pressure; beyond it the logged pressure is not the muscle's pressure at all.
+MAX_OFFSET_SHARE = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class Constant:
+    """One constant of an effect: its name, unit (``{x}`` stands for the contraction's unit,
+    % or mm) and physical bounds (lower, upper; ±inf where physics sets none)."""
+
+    name: str
+    unit: str
+    lower: float = -math.inf
+    upper: float = math.inf
+    meaning: str = ""
+    #: ``bounds(file) -> (lower, upper)`` where the bounds depend on the file.
+    bounds: Callable | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Effect:
+    """An effect as one diagnosis uses it: its definition bound to one file.
+
+    ``columns`` are its columns in the problem's feature matrix (empty for a transform);
+    ``transform`` is its place among the transform constants, or None.
+    """
+
+    name: str
+    covariate: str
+    param_names: tuple[str, ...]
+    units: tuple[str, ...]
+    columns: tuple[int, ...]
+    definition: EffectDefinition = dataclasses.field(repr=False, default=None)
+    transform: int | None = None
+    grid: Constant | None = None
+
+    @property
+    def hidden(self) -> int:
+        """Constants chosen over a grid rather than fitted: each counts in the BIC."""
+        return 0 if self.grid is None else 1
+
+
+@dataclasses.dataclass
+class FileContext:
+    """What an effect may read of the file: the model, covariates and their ranges."""
+
+    spec: object
+    covariates: list[str]
+    ranges: dict[str, tuple[float, float]]
+    temperature_mean_C: float
+    pressure_median_bar: float
+    pressure_max_kPa: float
+    unit_x: str
+    has_pressure_steps: bool
+    max_repeat: int
+    distinct: dict[str, int]
+
+
+@dataclasses.dataclass
+class MuscleContext:
+    """One muscle's rows and what the features of an effect are made from."""
+
+    frame: pd.DataFrame
+    baseline_N: np.ndarray  # F_model at the baseline constants
+    steps: np.ndarray  # the moving pressure's steps (kPa), 0 between steps
+    trial: np.ndarray
+    time_s: np.ndarray | None
+    file: FileContext
+    speed: str | None = None  # the rate-of-contraction column, if any
+    l0_mm: float | None = None
+    #: The largest ∂F_model/∂p over the muscle's rows (N/kPa), at the baseline constants.
+    max_dF_dp_N_per_kPa: float = math.inf
+
+    @property
+    def p_bar(self) -> np.ndarray:
+        return self.frame["pressure_kPa"].to_numpy(float) / KPA_PER_BAR
+
+
+@dataclasses.dataclass(frozen=True)
+class EffectDefinition:
+    """One candidate effect (see the module docstring).
+
+    Attributes:
+        name: its name in reports ("hysteresis").
+        covariates: columns it needs, all varying in the file (alternatives: the first
+            present is used for the covariate it is traced to).
+        constants: the fitted constants, in order (for a feature effect, one per column).
+        injector: the virtual bench's injector that hides it in data (dotted name).
+        features: ``features(muscle, col, grid_value) -> list of columns`` (N per unit of
+            each constant); ``col(name)`` reads a covariate (clamped to a fold's range).
+        transform: ``transform(x, value, force, io) -> x``: the model's inputs as the
+            muscle feels them, for a transform effect (``io`` names the inputs' places).
+        implicit: the transform depends on the force (the force law becomes implicit).
+        grid: a constant chosen over ``grid_values(file, muscle)`` (see the module).
+        applies: ``applies(file) -> bool``, beyond having its covariates.
+        check: ``check(values, file, muscle) -> message or None``: a physical condition
+            that bounds cannot state (the loop of a hysteresis must not run backwards).
+        family: ``family(file) -> [(name, covariate, constants)]``: for a family of
+            effects (``covariate:<col>``), the members in this file.
+    """
+
+    name: str
+    covariates: tuple[str, ...]
+    constants: tuple[Constant, ...]
+    injector: str
+    features: Callable | None = None
+    transform: Callable | None = None
+    implicit: bool = False
+    grid: Constant | None = None
+    grid_values: Callable | None = None
+    applies: Callable | None = None
+    check: Callable | None = None
+    family: Callable | None = None
+
+    def members(self, file: FileContext) -> list[tuple[str, str, tuple[Constant, ...]]]:
+        """(name, covariate, constants) of every effect of this definition in ``file``."""
+        if self.family is not None:
+            return self.family(file)
+        present = [c for c in self.covariates if c in file.covariates]
+        if self.covariates and not present:
+            return []
+        if self.applies is not None and not self.applies(file):
+            return []
+        unit_x = file.unit_x
+        consts = tuple(dataclasses.replace(c, unit=c.unit.format(x=unit_x))
+                       for c in self.constants)
+        return [(self.name, present[0] if present else "force_N", consts)]
+
+    def violation(self, values: dict[str, float], effect: Effect, file: FileContext,
+                  muscle: MuscleContext | None = None) -> str | None:
+        """None when the fitted ``values`` are physical; else what the effect would need,
+        e.g. "compliance would need c = −0.12 mm/N < 0: not physical"."""
+        for c, unit in zip(self.constants, effect.units, strict=False):
+            v = values.get(c.name)
+            if v is None or not np.isfinite(v):
+                continue
+            lo, hi = _bounds(c, file)
+            u = "" if unit == "1" else f" {unit}"
+            if v <= lo and lo > -math.inf:
+                return (f"{effect.name} would need {c.name} = {_fmt(v, unit, muscle)} "
+                        f"{'<' if v < lo else 'at'} {lo:g}{u}: not physical")
+            if v >= hi and hi < math.inf:
+                return (f"{effect.name} would need {c.name} = {_fmt(v, unit, muscle)} "
+                        f"{'>' if v > hi else 'at'} {hi:g}{u}: not physical")
+        if self.check is not None:
+            return self.check(values, file, muscle)
+        return None
+
+
+def _bounds(c: Constant, file: FileContext) -> tuple[float, float]:
+    return c.bounds(file) if c.bounds is not None else (c.lower, c.upper)
+
+
+def _offset_bounds(file: FileContext) -> tuple[float, float]:
+    b = MAX_OFFSET_SHARE * file.pressure_max_kPa
+    return -b, b
+
+
+def _fmt(v: float, unit: str, muscle: MuscleContext | None) -> str:
+    out = f"{v:.3g}" if unit == "1" else f"{v:.3g} {unit}"
+    if unit == "%/N" and muscle is not None and muscle.l0_mm:
+        out += f" ({v * muscle.l0_mm / 100.0:.3g} mm/N)"
+    return out
+
+
+# -- the moving input's steps ------------------------------------------------------------------
+
+
+def moving_steps(pressure_kPa: np.ndarray, moving: np.ndarray, trial: np.ndarray
+                 ) -> np.ndarray:
+    """The steps of the moving pressure (kPa) at each sample of one muscle, 0 elsewhere.
+
+    A step is a change from the previous sample of the same trial, where the pressure moves
+    (``moving == 1``, an isometric test), larger than :data:`STEP_SIGMAS` robust standard
+    deviations (1.4826·median absolute deviation) of all such changes: a valve's pulse, not
+    the sensor's noise. Without noise every change is a step (a ramp is a train of steps).
+    """
+    dp = np.diff(pressure_kPa, prepend=pressure_kPa[:1])
+    same = np.r_[False, trial[1:] == trial[:-1]] & (moving == 1)
+    dp = np.where(same, dp, 0.0)
+    if not same.any():
+        return dp
+    inside = dp[same]
+    sigma = 1.4826 * np.median(np.abs(inside - np.median(inside)))
+    floor = 1e-9 * (np.max(np.abs(pressure_kPa)) + 1.0)
+    return np.where(np.abs(dp) > max(STEP_SIGMAS * sigma, floor), dp, 0.0)
+
+
+def time_since_step(steps: np.ndarray, time_s: np.ndarray, trial: np.ndarray) -> np.ndarray:
+    """Time since the last step of the moving input in the same trial (since the trial's
+    first sample where none came yet), in s."""
+    n = len(steps)
+    idx = np.arange(n)
+    first = np.r_[True, trial[1:] != trial[:-1]]
+    marker = np.where((steps != 0) | first, idx, 0)
+    last = np.maximum.accumulate(marker)
+    return time_s - time_s[last]
+
+
+def _relaxation(steps, time_s, trial, tau):
+    """Σ_k Δp_k·exp(−(t − t_k)/τ) over the earlier steps of the sample's trial: the
+    first-order relaxation of every step. A step seen first at sample n happened somewhere
+    between samples n − 1 and n; it is placed halfway (the recursion
+    y_n = e^(−Δt_n/τ)·y_(n−1) + Δp_n·e^(−Δt_n/(2τ)))."""
+    out = np.zeros(len(steps))
+    dt = np.maximum(np.diff(time_s, prepend=time_s[:1]), 0.0)
+    decay = np.exp(-dt / tau)
+    kick = steps * np.exp(-0.5 * dt / tau)
+    new_trial = np.r_[True, trial[1:] != trial[:-1]]
+    y = 0.0
+    for i, (step, a, new) in enumerate(zip(kick.tolist(), decay.tolist(),
+                                           new_trial.tolist(), strict=True)):
+        y = (0.0 if new else a * y) + step
+        out[i] = y
+    return out
+
+
+# -- the static effects --------------------------------------------------------------------
+
+
+def _hysteresis_check(values, file, muscle):
+    h = values["h0"] + values["h1"] * file.pressure_median_bar
+    if h < 0:
+        return (f"hysteresis would need h = h0 + h1·p = {h:.3g} N < 0 at the median pressure "
+                f"{file.pressure_median_bar:.3g} bar (a loop run backwards gains energy): "
+                "not physical")
+    return None
+
+
+def _hysteresis() -> EffectDefinition:
+    """Inflate/deflate or contract/extend hysteresis: −d·(h0 + h1·p) N.
+
+    Physical reason: dry friction between the braid's fibres and between braid and bladder
+    dissipates energy, so the force while contracting lies below the force while extending
+    (Sárosi's lower and upper curves F_a and F_f, eq. 2.3–2.4; Chou and Hannaford 1996,
+    IEEE Trans. Robot. Autom. 12(1):90–102). The half height h(p) must be ≥ 0.
+    Injector: :class:`pamid._data._virtual_effects.InjectedHysteresis` (and
+    ``IsometricProtocol.hysteresis_N_at_3_bar``).
+    """
+    return EffectDefinition(
+        name="hysteresis", covariates=("direction",),
+        constants=(Constant("h0", "N"), Constant("h1", "N/bar")),
+        injector="pamid._data._virtual_effects.InjectedHysteresis",
+        features=lambda m, col, g: [-col("direction"), -col("direction") * m.p_bar],
+        check=_hysteresis_check,
+    )
+
+
+def _temperature() -> EffectDefinition:
+    """Force changing with the muscle's temperature: (τ0 + τ1·p)·(T − T̄).
+
+    Physical reason: the bladder's rubber stiffens or softens with temperature (entropy
+    elasticity, Treloar, The Physics of Rubber Elasticity, 1975, ch. 2), changing the force
+    at a given pressure and length. No sign is imposed: both occur. Injector:
+    :class:`pamid._data._virtual_effects.InjectedTemperature`.
+    """
+    def features(m, col, g):
+        dt = col("temperature_C") - m.file.temperature_mean_C
+        return [dt, dt * m.p_bar]
+
+    return EffectDefinition(
+        name="temperature", covariates=("temperature_C",),
+        constants=(Constant("tau0", "N/K"), Constant("tau1", "N/(bar·K)")),
+        injector="pamid._data._virtual_effects.InjectedTemperature", features=features)
+
+
+def _drift() -> EffectDefinition:
+    """Load-cell zero drift: δ1·t + δ2·t², t in hours from the start of the muscle's test.
+
+    Physical reason: a strain-gauge bridge's zero moves as it warms and creeps (any load
+    cell's datasheet states a zero drift per hour and per kelvin); it is additive and does
+    not depend on the load. Injector: :class:`pamid._data._virtual_effects.InjectedDrift`.
+    """
+    def features(m, col, g):
+        h = col("elapsed_s") / 3600.0
+        return [h, h**2]
+
+    return EffectDefinition(
+        name="drift", covariates=("elapsed_s",),
+        constants=(Constant("delta1", "N/h"), Constant("delta2", "N/h²")),
+        injector="pamid._data._virtual_effects.InjectedDrift", features=features)
+
+
+def _viscous_damping() -> EffectDefinition:
+    """A force opposing the rate of contraction: −g·v (Cullinan's −G·ẏ, eq. 3).
+
+    Physical reason: viscous losses in the bladder and the air flow resist motion in
+    proportion to speed; dissipation requires g ≥ 0. Injector:
+    :class:`pamid._data._virtual_effects.InjectedViscousDamping`.
+    """
+    return EffectDefinition(
+        name="viscous_damping", covariates=("speed_mm_s", "speed_pct_s"),
+        constants=(Constant("g", "N·s/{x}", lower=0.0),),
+        injector="pamid._data._virtual_effects.InjectedViscousDamping",
+        features=lambda m, col, g: [-col(m.speed)],
+        applies=lambda f: len(f.spec.columns) < 3,  # Cullinan with G has it already
+    )
+
+
+def _transient_grid(file, muscle):
+    if muscle.time_s is None or not np.any(muscle.steps):
+        return np.array([1.0])
+    dt = np.diff(muscle.time_s)
+    dt = dt[dt > 0]
+    return float(np.median(dt)) * TRANSIENT_GRID if len(dt) else np.array([1.0])
+
+
+def _transient_check(values, file, muscle):
+    g = values["g"]
+    bound = muscle.max_dF_dp_N_per_kPa if muscle is not None else math.inf
+    if g <= -bound:
+        return (f"transient would need g = {g:.3g} N/kPa ≤ −{bound:.3g} N/kPa (a lag of "
+                "more than the whole step: the force would move against the pressure): "
+                "not physical")
+    return None
+
+
+def _transient() -> EffectDefinition:
+    """Force relaxation after each step of the moving pressure: g·Σ_k Δp_k·e^(−(t − t_k)/τ).
+
+    Physical reason: the bladder's rubber is viscoelastic; a step of the pressure first
+    loads it with its instantaneous (glassy) modulus, and the force relaxes towards the
+    static one with the material's relaxation time — the standard linear solid (Zener,
+    Elasticity and Anelasticity of Metals, 1948; for McKibben muscles, the viscoelastic
+    sheath model of arXiv:2301.04684, "Viscoelastic McKibben actuators with tunable
+    force-velocity curves", 2023); the air's heating by compression relaxes alike: the force
+    overshoots in the direction of the step, g > 0. The opposite sign is physical too: where
+    the sensor sits upstream of the muscle (at the valve), the muscle's own pressure follows
+    the logged one through the tubing with a first-order lag (a pneumatic RC), and the force
+    lags, g < 0 — but never by more than the whole step: g ≥ −max ∂F_model/∂p. τ > 0.
+    The AARL 10 mm file
+    (``../shared/data/README.md``) shows such a transient at every valve pulse. The
+    covariate is the time since the last step of the moving input, within its trial
+    (:func:`time_since_step`); τ is chosen over a grid of multiples of the sample interval.
+    Injector: ``IsometricProtocol.transient_N_per_kPa`` / ``transient_tau_s``
+    (:mod:`pamid._data._virtual_isometric`).
+    """
+    return EffectDefinition(
+        name="transient", covariates=("time_since_step_s",),
+        constants=(Constant("g", "N/kPa", meaning="overshoot (> 0) or lag (< 0) per kPa"),),
+        injector="pamid._data._virtual_isometric.IsometricProtocol.transient_N_per_kPa",
+        check=_transient_check,
+        features=lambda m, col, tau: [_relaxation(m.steps, m.time_s, m.trial, tau)],
+        grid=Constant("tau_s", "s", lower=0.0), grid_values=_transient_grid,
+        applies=lambda f: f.has_pressure_steps,
+    )
+
+
+def _softening() -> EffectDefinition:
+    """Loss of force from repeat to repeat, saturating: −s·(1 − e^(−repeat/r))·F_model.
+
+    Physical reason: the Mullins effect — a filled rubber loaded again to a strain it has
+    seen needs less stress than on its first loading, and the loss saturates over the
+    first few cycles (Mullins, Rubber Chem. Technol. 42:339–362, 1969; Diani, Fayolle and
+    Gilormini, "A review on the Mullins effect", Eur. Polym. J. 45:601–612, 2009). A loss
+    of force: 0 ≤ s < 1; r > 0 (in repeats) is chosen over a grid. F_model is the baseline
+    fit. Injector: ``IsometricProtocol.softening`` / ``softening_repeats``
+    (:mod:`pamid._data._virtual_isometric`).
+    """
+    return EffectDefinition(
+        name="softening", covariates=("repeat",),
+        constants=(Constant("s", "1", lower=0.0, upper=1.0, meaning="share of force lost"),),
+        injector="pamid._data._virtual_isometric.IsometricProtocol.softening",
+        features=lambda m, col, r: [-(1.0 - np.exp(-m.frame["repeat"].to_numpy(float) / r))
+                                    * m.baseline_N],
+        grid=Constant("r", "repeats", lower=0.0),
+        grid_values=lambda f, m: np.asarray(SOFTENING_GRID),
+        applies=lambda f: f.max_repeat >= 1,
+    )
+
+
+def _covariate_family(file: FileContext):
+    from ._static import _IN_BASE_MODEL
+
+    out = []
+    for c in file.covariates:
+        if c == "direction":
+            continue
+        lo, hi = file.ranges[c]
+        top = min(COVARIATE_DEGREE, file.distinct[c] - 1)
+        degrees = [k for k in range(1, top + 1)
+                   if k not in _IN_BASE_MODEL.get((file.spec.name, c), ())]
+        if degrees:
+            out.append((f"covariate:{c}", c, tuple(Constant(f"b{k}", "N") for k in degrees)))
+    return out
+
+
+def _covariate_features(m, col, g, effect):
+    lo, hi = m.file.ranges[effect.covariate]
+    basis = legendre_basis(scaled(col(effect.covariate), lo, hi), COVARIATE_DEGREE)
+    return [basis[int(name[1:]) - 1] for name in effect.param_names]
+
+
+def _covariate() -> EffectDefinition:
+    """Any smooth function of a covariate z: b1·P1(z) + b2·P2(z) + b3·P3(z), z scaled to
+    [−1, 1] over the file, P_k Legendre polynomials (Abramowitz and Stegun, 22.2.10).
+
+    Not a physical effect: it traces what the library cannot model to its covariate, so
+    that an effect outside the library is still named by what it depends on. No bounds.
+    Injector: :class:`pamid._data._virtual_effects.InjectedCovariate`.
+    """
+    return EffectDefinition(
+        name="covariate", covariates=(), constants=(),
+        injector="pamid._data._virtual_effects.InjectedCovariate",
+        features=_covariate_features, family=_covariate_family)
+
+
+def _compliance_transform(x, c, force, io):
+    x = list(x)
+    x[io["contraction"]] = x[io["contraction"]] + c * force
+    return tuple(x)
+
+
+def _compliance() -> EffectDefinition:
+    """The rig stretches under load: F solves F = F_model(p, x + c·F).
+
+    Physical reason: the load cell, its mounts and any cable stretch under the force, so the
+    muscle is shorter than the encoder says by c·F (a spring in series; Sárosi's rig reads
+    the rod, not the muscle). A spring has c ≥ 0: a negative c would mean a rig that
+    shortens under load. Injector: :class:`pamid._data._virtual_effects.InjectedCompliance`.
+    """
+    return EffectDefinition(
+        name="compliance", covariates=(), constants=(Constant("c", "{x}/N", lower=0.0),),
+        injector="pamid._data._virtual_effects.InjectedCompliance",
+        transform=_compliance_transform, implicit=True,
+        applies=lambda f: f.spec.contraction_column in f.spec.columns)
+
+
+def _offset_transform(x, delta_kpa, force, io):
+    x = list(x)
+    i, per_kpa = io["pressure"]
+    x[i] = x[i] + delta_kpa * per_kpa
+    return tuple(x)
+
+
+def _sensor_offset() -> EffectDefinition:
+    """An offset of the logged pressure: F = F_model(p_logged + δ, x).
+
+    Physical reason: a pressure transducer's zero is off by manufacturing tolerance,
+    mounting stress and temperature (zero-offset error; e.g. Ashcroft, "What causes offset
+    in the output of a transducer at zero and span?", blog.ashcroft.com, and any sensor's
+    datasheet, which states it in % of full scale); AARL's logger reads 7–9 kPa at ambient
+    (``../shared/data/README.md``), i.e. δ ≈ −8 kPa. |δ| must stay below
+    :data:`MAX_OFFSET_SHARE` of the largest logged pressure. Identifiable only where the
+    force law is not affine in p at every length (Sárosi eq. 2.1: through the a4·κ·p term).
+    Injector: ``IsometricProtocol.pressure_offset_kPa`` (:mod:`pamid._data._virtual_isometric`).
+    """
+    return EffectDefinition(
+        name="sensor_offset", covariates=(),
+        constants=(Constant("delta_kPa", "kPa", bounds=_offset_bounds),),
+        injector="pamid._data._virtual_isometric.IsometricProtocol.pressure_offset_kPa",
+        transform=_offset_transform,
+        applies=lambda f: "pressure_kPa" in f.spec.columns)
+
+
+#: Every candidate effect of a static diagnosis, in the order they are listed.
+STATIC_EFFECTS: tuple[EffectDefinition, ...] = (
+    _hysteresis(), _temperature(), _drift(), _viscous_damping(), _transient(), _softening(),
+    _covariate(), _compliance(), _sensor_offset(),
+)
+
+
+def transforms() -> tuple[EffectDefinition, ...]:
+    """The effects that transform the model's inputs, in the order of their constants in
+    the lanes' parameter layout."""
+    return tuple(d for d in STATIC_EFFECTS if d.transform is not None)
+
+
+# -- the decay effects -----------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class DecayEffect:
+    """A candidate effect of a free-decay diagnosis (:mod:`pamid._dynamics._coulomb`):
+    ``fit_name`` is its constant in the lanes' layout, ``key`` and ``constant`` how it is
+    reported."""
+
+    name: str
+    covariate: str
+    fit_name: str
+    key: str
+    constant: Constant
+    injector: str | None
+    doc: str
+
+    def violation(self, value: float) -> str | None:
+        c = self.constant
+        if np.isfinite(value) and c.lower > -math.inf and value <= c.lower:
+            return (f"{self.name} would need {c.name} = {value:.3g} {c.unit} ≤ {c.lower:g} "
+                    f"{c.unit}: not physical")
+        return None
+
+
+DECAY_EFFECTS: tuple[DecayEffect, ...] = (
+    DecayEffect(
+        "coulomb_friction", "velocity_rad_s", "coulomb_shift_rad", "coulomb_Nm",
+        Constant("coulomb_Nm", "N·m", lower=0.0),
+        "pamid._data._virtual_decay.simulate_decays (coulomb_Nm=)",
+        "A constant friction torque T_c·sign(β̇) (the sliding seal, the cable over the "
+        "pulley): the amplitude falls linearly instead of geometrically; T_c ≥ 0 "
+        "(dissipation)."),
+    DecayEffect(
+        "drift", "elapsed_s", "drift_rad_s", "drift_rad_s", Constant("drift_rad_s", "rad/s"),
+        None,  # the virtual decay bench has no moving equilibrium yet
+        "An equilibrium that moves with time, β_eq + r·t (a slow leak); either sign."),
+)

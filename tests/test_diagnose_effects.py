@@ -1,0 +1,190 @@
+"""Issue #16: the effects as objects, the effects real benches show, and physical bounds.
+
+Isometric files as AARL delivers them (valve steps, trials whose clock restarts, ±1 kPa of
+pressure noise, 1 N of force noise) with one hidden effect each: the diagnosis must name
+it, and leave an error at the level of the same file without the effect (the noise, with
+the pressure noise carried through the force law). Small files (1,260 rows), all of one
+shape, so that the compiled refits are shared.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from types import SimpleNamespace
+
+import jax
+import numpy as np
+import pytest
+
+import pamid
+from pamid._data._virtual_effects import InjectedDrift, InjectedTemperature
+from pamid._data._virtual_isometric import virtual_lab_file
+from pamid._diagnose._api import diagnose
+from pamid._diagnose._effects import (
+    DECAY_EFFECTS,
+    STATIC_EFFECTS,
+    _relaxation,
+    moving_steps,
+    time_since_step,
+)
+from pamid._diagnose._report import format_report
+from pamid._dynamics._coulomb import DECAY_EFFECTS as DECAY_FIT_NAMES
+
+ROWS = 1260  # 105 samples a trial: not in step with the valve (a real logger is not)
+CLEAN = {"transient_N_per_kPa": 0.0, "pressure_offset_kPa": 0.0,
+         "hysteresis_N_at_3_bar": 0.0, "min_force_N": None}
+
+
+def _iso(tmp_path, name, drop_direction=True, seed=3, **options):
+    frame = virtual_lab_file(jax.random.key(seed), "isometric_stairs", ROWS,
+                             **(CLEAN | options))
+    if drop_direction:
+        frame = frame.drop(columns=["direction"])
+    path = tmp_path / f"{name}.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    return diagnose(_iso(tmp_path_factory.mktemp("clean"), "clean"))
+
+
+# -- the registry ------------------------------------------------------------------------------
+
+
+def _resolve(dotted: str):
+    parts = dotted.split(" ")[0].split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            obj = getattr(obj, attr)
+        return obj
+    raise ImportError(dotted)
+
+
+def _Named(name):
+    return SimpleNamespace(name=name, units=("N/kPa",))
+
+
+def test_every_effect_names_an_injector_that_exists_and_physical_bounds():
+    names = [d.name for d in STATIC_EFFECTS]
+    assert len(names) == len(set(names))
+    assert {"transient", "softening", "sensor_offset", "compliance", "hysteresis"} <= set(names)
+    for d in STATIC_EFFECTS:
+        _resolve(d.injector)  # raises if the virtual bench has no such injector
+        for c in d.constants:
+            assert c.lower < c.upper
+    bound = {d.name: {c.name: (c.lower, c.upper) for c in d.constants} for d in STATIC_EFFECTS}
+    assert bound["compliance"]["c"] == (0.0, math.inf)
+    assert bound["viscous_damping"]["g"][0] == 0.0
+    assert bound["softening"]["s"] == (0.0, 1.0)
+    transient = next(d for d in STATIC_EFFECTS if d.name == "transient")
+    assert transient.grid.lower == 0.0  # τ > 0
+    # g may be negative (a pneumatic lag), but never a lag of more than the whole step
+    muscle = SimpleNamespace(max_dF_dp_N_per_kPa=2.0)
+    assert transient.violation({"g": -0.5}, _Named("transient"), None, muscle) is None
+    assert "not physical" in transient.violation({"g": -2.5}, _Named("transient"), None,
+                                                 muscle)
+    # the decay diagnosis reads the same registry
+    assert DECAY_FIT_NAMES == {e.name: e.fit_name for e in DECAY_EFFECTS}
+    friction = next(e for e in DECAY_EFFECTS if e.name == "coulomb_friction")
+    assert friction.violation(-0.01) is not None and friction.violation(0.01) is None
+
+
+def test_steps_time_since_step_and_relaxation_known_answers():
+    # one trial: held at 0, a step of +60 kPa at sample 3, noise of 0.5 kPa elsewhere
+    p = np.array([0.0, 0.5, -0.5, 60.0, 60.5, 59.5, 60.0, 0.0])
+    t = np.arange(8) * 0.5
+    trial = np.zeros(8, int)
+    moving = np.ones(8, np.int8)
+    steps = moving_steps(p, moving, trial)
+    np.testing.assert_allclose(steps, [0, 0, 0, 60.5, 0, 0, 0, -60.0])
+    np.testing.assert_allclose(time_since_step(steps, t, trial),
+                               [0, 0.5, 1.0, 0, 0.5, 1.0, 1.5, 0])
+    tau = 0.5
+    y = _relaxation(steps, t, trial, tau)
+    # the step is placed halfway between samples 2 and 3: 0.25 s before sample 3
+    expect3 = 60.5 * math.exp(-0.25 / tau)
+    np.testing.assert_allclose(y[3:7], expect3 * np.exp(-np.arange(4) * 0.5 / tau))
+    np.testing.assert_allclose(y[7], y[6] * math.exp(-1.0) - 60.0 * math.exp(-0.5))
+    # a new trial starts from rest; a sweep (the contraction moves) has no pressure steps
+    assert not moving_steps(p, np.zeros(8, np.int8), trial).any()
+
+
+# -- physical bounds ---------------------------------------------------------------------------
+
+
+def test_a_rig_that_shortens_under_load_never_reports_a_negative_compliance(tmp_path):
+    """The encoder reads a contraction that grows with the force (κ_read = κ + a·F): the
+    force law would need F = F_model(p, κ_read − a·F), a compliance c = −a < 0."""
+    proto = pamid.SarosiProtocol(min_force_N=10.0)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(2), pamid.table_3_1(), proto)
+    a_mm_per_N = 0.004
+    frame["contraction_pct"] = frame["contraction_pct"] + 100.0 * a_mm_per_N * frame[
+        "force_N"] / frame["l0_mm"]
+    frame = frame.drop(columns=[c for c in ("length_mm",) if c in frame])
+    path = tmp_path / "shortens.csv"
+    frame.to_csv(path, index=False)
+    d = diagnose(path)
+    assert "compliance" not in d.selected
+    row = next(r for r in d.candidates if r["effect"] == "compliance")
+    assert row["delta_bic"] < -10  # the data would support it ...
+    assert not row["significant"]  # ... but it is not physical
+    assert "compliance would need c = -" in row["unphysical"]
+    assert "mm/N" in row["unphysical"] and "not physical" in row["unphysical"]
+    assert "compliance would need c = -" in format_report(d)
+    assert "not selected" in format_report(d)
+
+
+# -- detection in isometric files ---------------------------------------------------------------
+
+HIDDEN = [
+    # g and τ trade off where τ is about a sample interval: their product, the relaxation's
+    # integral per kPa of step (0.05 N/kPa × 0.3 s), is what the data fix.
+    ("transient", {"transient_N_per_kPa": 0.05, "transient_tau_s": 0.3, "dwell_s": 1.0},
+     {"g*tau_s": (0.0115, 0.0195), "tau_s": (0.15, 0.6)}),
+    ("softening", {"softening": 0.05, "softening_repeats": 1.0}, {"s": (0.045, 0.055)}),
+    ("sensor_offset", {"pressure_offset_kPa": -30.0}, {"delta_kPa": (27.0, 33.0)}),
+    ("drift", {"effects": (InjectedDrift(N_per_hour=100.0),)}, {}),
+    ("temperature", {"effects": (InjectedTemperature(),)},
+     {"tau0": (-0.6, -0.4), "tau1": (-0.36, -0.24)}),
+]
+
+
+def test_clean_isometric_file_selects_nothing(clean):
+    assert clean.selected == []
+
+
+@pytest.mark.parametrize(("name", "options", "constants"), HIDDEN, ids=[h[0] for h in HIDDEN])
+def test_effect_detected_named_and_removed_in_isometric_file(tmp_path, clean, name, options,
+                                                             constants):
+    d = diagnose(_iso(tmp_path, name, **options))
+    assert d.selected == [name]
+    assert d.rmse_after < 1.05 * clean.rmse_before  # down to the noise
+    got = {k: v["value"] for k, v in d.constants[0]["effects"][name].items()}
+    for pname, (lo, hi) in constants.items():
+        value = math.prod(got[p] for p in pname.split("*"))
+        assert lo < value < hi, (pname, got)
+
+
+def test_hysteresis_in_isometric_file_and_told_from_transient(tmp_path, clean):
+    """Inflating below, deflating above (with the valve's direction logged): hysteresis,
+    not a transient; a transient read as hysteresis would need h < 0 (a loop run
+    backwards) and is refused."""
+    d = diagnose(_iso(tmp_path, "hyst", drop_direction=False, hysteresis_N_at_3_bar=9.0))
+    assert d.selected == ["hysteresis"]
+    assert d.rmse_after < 1.05 * clean.rmse_before
+    h = d.constants[0]["effects"]["hysteresis"]
+    assert h["h1"]["ci95"][0] < 3.0 < h["h1"]["ci95"][1]  # 9 N at 3 bar, linear in p
+
+
+def test_two_effects_together_softening_and_transient(tmp_path, clean):
+    d = diagnose(_iso(tmp_path, "two", softening=0.05, softening_repeats=1.0,
+                      transient_N_per_kPa=0.05, transient_tau_s=0.3, dwell_s=1.0))
+    assert sorted(d.selected) == ["softening", "transient"]
+    assert d.rmse_after < 1.05 * clean.rmse_before
