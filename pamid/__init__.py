@@ -245,8 +245,6 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
     from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
     from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
-    from ._models._protocol import ForceModel as ForceModel
-    from ._fit._spec import ModelDefinitionError as ModelDefinitionError
     from ._diagnose._api import Diagnosis as Diagnosis
     from ._diagnose._api import diagnose as diagnose
     from ._dynamics._coulomb import DECAY_EFFECTS as DECAY_EFFECTS
@@ -277,6 +275,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._fit._batch import pack as pack_muscles
     from ._fit._sharding import lane_devices as lane_devices
     from ._fit._sharding import use_devices as use_devices
+    from ._fit._spec import ModelDefinitionError as ModelDefinitionError
     from ._models._cullinan import Cullinan as Cullinan
     from ._models._cullinan import cullinan_force as cullinan_force
     from ._models._cullinan import cullinan_spring_rate as cullinan_spring_rate
@@ -324,6 +323,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._models._joint import (
         pressures_for_torque_stiffness_kPa as pressures_for_torque_stiffness_kPa,
     )
+    from ._models._protocol import ForceModel as ForceModel
     from ._models._sarosi import TABLE_3_1 as TABLE_3_1
     from ._models._sarosi import TABLE_3_1_L0_MM as TABLE_3_1_L0_MM
     from ._models._sarosi import Sarosi as Sarosi

@@ -56,7 +56,8 @@ def _format_table(result, published=None) -> str:
     """Constants with Wald 95% intervals (and profile/bootstrap/published where present)."""
     lines = []
     for i, muscle in enumerate(result.muscles):
-        status = "converged" if result.converged[i] else "NOT CONVERGED"
+        status = result.status_of(i) if result.converged[i] else \
+            f"NOT CONVERGED: {result.status_of(i)}"
         head = f"muscle {muscle}" if muscle is not None else "muscle"
         lines.append(
             f"{head}: n = {result.n[i]}, RMSE = {result.rmse_N[i]:.4g} N, "
@@ -64,18 +65,23 @@ def _format_table(result, published=None) -> str:
         )
         if result.message(i):
             lines.append(f"  why: {result.message(i)}")
+        if i < len(result.interval_notes) and result.interval_notes[i]:
+            lines.append(f"  intervals: {result.interval_notes[i]}")
         cols = ["constant", "unit", "value", "95% low", "95% high"]
         if result.ci95_profile is not None:
             cols += ["profile low", "profile high"]
         if result.ci95_bootstrap is not None:
             cols += ["bootstrap low", "bootstrap high"]
+        extra = [(label, ci) for label, ci in (("cluster", result.ci95_cluster),
+                                               ("HAC", result.ci95_hac)) if ci is not None]
+        cols += [f"{label} {end}" for label, _ in extra for end in ("low", "high")]
         if published is not None:
             cols += ["published", "pub. low", "pub. high"]
         rows = [cols]
         for j, name in enumerate(result.param_names):
             row = [name, result.param_units[name], f"{result.theta[i, j]:.6g}",
                    f"{result.ci95[i, j, 0]:.6g}", f"{result.ci95[i, j, 1]:.6g}"]
-            for ci in (result.ci95_profile, result.ci95_bootstrap):
+            for ci in (result.ci95_profile, result.ci95_bootstrap, *(c for _, c in extra)):
                 if ci is not None:
                     row += [f"{ci[i, j, 0]:.6g}", f"{ci[i, j, 1]:.6g}"]
             if published is not None:
@@ -92,6 +98,12 @@ def _format_table(result, published=None) -> str:
         lines.append("profile: profile-likelihood (profile-t) intervals.")
     if result.ci95_bootstrap is not None:
         lines.append("bootstrap: percentile intervals from resampling whole curves.")
+    if result.ci95_cluster is not None:
+        lines.append("cluster: cluster-robust (CR3 by curve, t on curves − 1 dof) intervals; "
+                     "they hold when the residuals are correlated within curves.")
+    if result.ci95_hac is not None:
+        lines.append("HAC: Newey–West intervals (Bartlett kernel, pairs within a trial, "
+                     "Andrews' bandwidth).")
     return "\n".join(lines)
 
 
@@ -134,8 +146,14 @@ def _cmd_fit(args) -> int:
     from ._commands._model import check_model
     from ._commands._reading import reading_options
 
-    check_model(args.model)  # a typo or a broken model file: one line, before reading data
+    spec = check_model(args.model)  # a typo or a broken model file: one line, before reading
+    from ._commands._model import parse_bounds
 
+    bounds = parse_bounds(getattr(args, "bounds", None), spec)  # bad text: one line, exit 2
+
+    from ._fit import _export_cache
+
+    _export_cache.prepare_in_background()  # JAX's start-up, while the file is read
     bench = load_bench(args.data, **reading_options(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
     if args.bootstrap and "bootstrap" not in intervals:
@@ -156,19 +174,19 @@ def _cmd_fit(args) -> int:
         solver=args.solver,
         intervals=intervals,
         n_bootstrap=args.bootstrap or 1000,
-        key=jax.random.key(args.seed),
+        key=jax.random.key(args.seed) if "bootstrap" in intervals else None,  # a compiled call
+        bounds=bounds,
     )
-    payload = result.to_dict()
-    payload["source"] = str(args.data)
-    payload["n_censored_dropped"] = bench.n_censored
-    payload["seconds"] = round(time.perf_counter() - t0, 3)
+    payload = {"source": str(args.data), "n_censored_dropped": bench.n_censored,
+               "seconds": round(time.perf_counter() - t0, 3)}  # after result.to_dict()'s keys
     if args.out:
         out = Path(args.out)
         _stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _write_plots(bench, result, out, args.max_plots)
-        write_text_atomic(out / "fit.json", json.dumps(payload, indent=2) + "\n")
+        write_text_atomic(out / "fit.json",
+                          json.dumps({**result.to_dict(), **payload}, indent=2) + "\n")
     if args.json:
-        print(json.dumps(payload))
+        print(result.to_json(**payload))  # json.dumps({**result.to_dict(), **payload})
     else:
         print(_format_table(result))
         if not result.converged.all():
@@ -307,13 +325,17 @@ def _parser() -> argparse.ArgumentParser:
     from ._commands._model import add_model_argument
 
     add_model_argument(fit)
+    from ._commands._model import add_bounds_argument
+
+    add_bounds_argument(fit)
     fit.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     fit.add_argument("--out", help="folder for plots (PNG) and fit.json")
     fit.add_argument("--solver", default="gauss-newton",
                      choices=["gauss-newton", "levenberg-marquardt", "variable-projection",
                               "jaxopt-levenberg-marquardt"])
     fit.add_argument("--intervals", default="wald,profile",
-                     help="comma-separated: wald, profile, bootstrap (default wald,profile)")
+                     help="comma-separated: wald, profile, bootstrap, cluster (holds under "
+                          "residuals correlated within curves), hac (default wald,profile)")
     fit.add_argument("--bootstrap", type=int, default=0, metavar="B",
                      help="also bootstrap whole curves with B replicates per muscle")
     fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap and MCMC")
@@ -341,6 +363,10 @@ def _parser() -> argparse.ArgumentParser:
     from ._commands import diagnose
 
     diagnose.register(sub)
+
+    from ._commands import compare
+
+    compare.register(sub)
     return parser
 
 

@@ -315,3 +315,40 @@ def test_fast_reader_takes_a_wide_file(tmp_path):
     assert table is not None and len(table.names) == 300
     # muscle, the 300 columns, source_row
     assert pamid.load_bench(path).frame.shape == (10, 1 + 300 + 1)
+
+
+def test_numbers_pyarrow_parses_read_as_the_cell_by_cell_reader_reads_them(tmp_path, monkeypatch):
+    # The fast reader has pyarrow parse known numeric columns as float64 (no byte-level check
+    # of the cells): every cell must give the cell-by-cell reader's number or, where that
+    # reader refuses the cell, its error; random cells over the characters of numbers, and
+    # cells pyarrow reads that float() would read differently or not at all.
+    rng = np.random.default_rng(7)
+    alphabet = np.array(list("0123456789+-.eE"))
+    cells = ["".join(rng.choice(alphabet, size=rng.integers(1, 9))) for _ in range(150)]
+    cells += ["1.", ".5", "+.5e-3", "-0", "0001", "1e400", "-1e-400", "nan", "NaN", "-nan",
+              "inf", "+inf", "Infinity", "1_0", "١٠", "0x10", "1e", "e1", "1,5", "1e5.0",
+              "0.1000000000000000055511151231257827021181583404541015625", "9007199254740993"]
+    for j, cell in enumerate(cells):
+        path = tmp_path / f"c{j}.csv"
+        path.write_text(f"pressure_kPa,force_N,contraction_pct,time_s\n{cell},10,5,0\n"
+                        f"200,10,{cell},1\n")
+        outcomes = []
+        for fast in (True, False):
+            monkeypatch.setattr(_bench, "_FAST_CSV", fast)
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    outcomes.append(load_bench(path).frame)
+            except BenchDataError as err:
+                outcomes.append(str(err))
+        if isinstance(outcomes[1], str):
+            assert outcomes[0] == outcomes[1], cell
+        else:
+            pd.testing.assert_frame_equal(outcomes[0], outcomes[1], check_exact=True)
+            assert np.signbit(outcomes[0]["pressure_kPa"][0]) == np.signbit(float(cell)), cell
+    # a blank or a tab anywhere: the numbers are read as text, cell by cell where they must
+    path = tmp_path / "blank.csv"
+    path.write_text("muscle,pressure_kPa,force_N,contraction_pct\nA, 100,10,5\nA,200,20,5\n")
+    table = _bench._read_csv_fast(path, str(path))
+    assert table is None or table.columns["pressure_kPa"].values is None
+    assert load_bench(path).frame["pressure_kPa"].tolist() == [100.0, 200.0]

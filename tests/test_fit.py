@@ -293,11 +293,12 @@ def test_too_few_samples_is_not_converged(small_bench):
 def test_to_dict_of_a_pathological_muscle_is_strict_json(small_bench):
     bad = _equal_contraction_group(small_bench.groups[2])  # se = inf, ci95 = [-inf, inf]
     (p, k), y = small_bench.groups[1]
-    no_contraction = ((p, np.zeros_like(k)), y)  # constants NaN, converged False
+    no_contraction = ((p, np.zeros_like(k)), y)  # se = inf, not identifiable
     groups = [small_bench.groups[0], bad, no_contraction]
     result = pamid.fit_least_squares(pamid.pack_muscles(groups), solver="levenberg-marquardt")
     assert result.converged[0] and not result.converged[2]
-    assert np.isnan(result.theta[2, 0]) and not np.all(np.isfinite(result.se[1]))
+    assert result.status[1] == result.status[2] == "not_identifiable"
+    assert not np.any(np.isfinite(result.se[2])) and not np.all(np.isfinite(result.se[1]))
     json.dumps(result.to_dict(), allow_nan=False)
 
 
@@ -316,7 +317,8 @@ def test_bounds_that_exclude_the_optimum_hold_it_on_the_bound(small_bench, refer
     else:
         lower[j] = theta_ref[:, j].max() + 0.005
     result = pamid.fit_least_squares(small_bench.data, bounds=(lower, upper))
-    assert result.solver == "jaxopt-lbfgsb"
+    assert result.solver == "gauss-newton+bounds"  # refitted within the bounds
+    assert set(result.status) == {"at_bound"}
     assert np.all(result.converged)
     bound = upper[j] if side == "upper" else lower[j]
     # On the bound to rounding (L-BFGS-B works in scaled coordinates: θ = u·scale).

@@ -278,6 +278,27 @@ def test_to_dict_writes_every_number_as_the_element_wise_conversion(small_bench)
             assert all(type(v) in (float, type(None)) for v in entry["ci95"] + [entry["se"]])
 
 
+def test_to_json_writes_the_text_json_dumps_writes(small_bench):
+    """``FitResult.to_json`` (what ``pamid fit --json`` prints) is ``json.dumps`` of
+    ``to_dict`` with the command's own keys, character for character: NaN, ±inf, names
+    with quotes, '%' and non-ASCII letters, messages, both optional interval kinds."""
+    import dataclasses
+    import json
+
+    import jax
+
+    fit = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile", "bootstrap"),
+                                  key=jax.random.key(0), n_bootstrap=20)
+    theta = fit.theta.copy()
+    theta[0, 1], theta[-1, 5] = np.nan, -np.inf
+    names = tuple(['M "1" %s', None, "Düse 5 %"][i % 3] for i in range(fit.n_muscles))
+    messages = tuple("why 100 %" if i % 2 else None for i in range(fit.n_muscles))
+    fit = dataclasses.replace(fit, theta=theta, muscles=names, messages=messages)
+    extra = {"source": "a.csv", "n_censored_dropped": 2, "seconds": 0.5, "plots": ["f.png"]}
+    assert fit.to_json(**extra) == json.dumps({**fit.to_dict(), **extra})
+    assert json.loads(fit.to_json())["muscles"][0]["params"]["a2"]["value"] is None
+
+
 @pytest.mark.parametrize(("rows", "why"), [
     ("".join(f"{100 * (1 + k % 3)},{800 - 30 * k},{k}\n" for k in range(5)), "too few rows: 5"),
     ("300,500,5\n" * 20, "cannot determine all 6 constants"),

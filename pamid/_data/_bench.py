@@ -680,17 +680,38 @@ def _plain_numbers(chunked, decimal: str = ".", blanks: bool = False) -> np.ndar
 
 
 def _factorize_text(chunked) -> tuple[np.ndarray, np.ndarray]:
-    """The stripped cells of a pyarrow string column as ``uniques[codes]``.
+    """The stripped cells of a pyarrow string column (or dictionary of strings) as
+    ``uniques[codes]``.
 
     ``uniques`` (an object array of str) are distinct and in order of first appearance, so
     code k first appears after code k - 1 does. Python strips each distinct cell once.
     """
-    encoded = chunked.combine_chunks().dictionary_encode()
+    import pyarrow as pa
+
+    if pa.types.is_dictionary(chunked.type):  # parsed as such (labels, _read_csv_fast)
+        encoded = chunked.unify_dictionaries().combine_chunks()
+    else:
+        encoded = chunked.combine_chunks().dictionary_encode()
     raw_codes = encoded.indices.to_numpy(zero_copy_only=False)
     stripped = np.array([cell.strip() for cell in encoded.dictionary.to_pylist()], dtype=object)
     text_ids, texts = pd.factorize(stripped)  # cells that differ only in blanks merge here
-    codes, order = pd.factorize(text_ids[raw_codes])
-    return codes.astype(np.int64, copy=False), np.asarray(texts, dtype=object)[order]
+    ids = text_ids.astype(np.int64)[raw_codes]
+    texts = np.asarray(texts, dtype=object)
+    if _in_order_of_appearance(ids, len(texts)):  # pyarrow's dictionary usually is
+        return ids, texts
+    codes, order = pd.factorize(ids)
+    return codes.astype(np.int64, copy=False), texts[order]
+
+
+def _in_order_of_appearance(codes: np.ndarray, n_codes: int) -> bool:
+    """Whether every code 0 … ``n_codes`` − 1 appears in ``codes``, code k first after code
+    k − 1 does (as ``pd.factorize`` numbers them): the largest code so far starts at 0 and
+    grows by steps of 1 up to ``n_codes`` − 1."""
+    if len(codes) == 0:
+        return n_codes == 0
+    largest = np.maximum.accumulate(codes)
+    return bool(codes[0] == 0 and largest[-1] == n_codes - 1
+                and (np.diff(largest) <= 1).all())
 
 
 def _text_values(uniques: np.ndarray, codes: np.ndarray):
@@ -723,6 +744,35 @@ def _point(cells, decimal: str):
 def _blank_ok(name: str) -> bool:
     """Whether a blank cell of this numeric column (pamid's name) means "not recorded"."""
     return name not in _LABELS and _quantity_of(name) not in _STRICT_QUANTITIES
+
+
+def _parsed_as_float(name: str) -> bool:
+    """Whether the fast reader has pyarrow parse this column (pamid's name) as float64: a
+    number pamid knows by name whose text is not needed (a pressure in kPa, not in bar,
+    whose kPa come from the text)."""
+    known = name in ("direction", "cycle") or _quantity_of(name) is not None
+    return known and name not in _LABELS and PRESSURE_COLUMNS.get(name, "kPa") == "kPa"
+
+
+def _float_column(name: str, chunked) -> _Column | None:
+    """A column pyarrow parsed as float64 (a blank cell is a null), or None if the
+    cell-by-cell reader must read the file: a blank cell where a number is required, or a
+    cell that is not a finite number (NaN or inf written as such, or 1e999)."""
+    if chunked.null_count and not _blank_ok(name):
+        return None
+    values = chunked.to_numpy()  # NaN where a cell is blank (null)
+    if not values.flags.writeable:  # one chunk: a view of pyarrow's buffer
+        values = values.copy()
+    finite = np.isfinite(values)
+    if chunked.null_count:
+        null = ~finite  # every null is NaN; no other cell may be NaN or infinite ...
+        if int(np.count_nonzero(null)) != chunked.null_count:  # ... and one is
+            return None
+    else:
+        if not finite.all():
+            return None
+        null = np.broadcast_to(False, values.shape)
+    return _Column(name, values=values, null=null, parsed=values)
 
 
 def _fast_column(
@@ -821,6 +871,22 @@ def _read_csv_fast(
 
     keys = [f"c{j}" for j in range(len(names))]
     n_lines = data.count(b"\n", header_end + 1, end) + 1
+    # Numbers pamid knows by name are parsed by pyarrow as float64 where no cell can hold a
+    # blank or a tab (pyarrow would read " 1" as 1; such files take the text way below).
+    # pyarrow's float64 takes [+-]digits[.digits][e[+-]digits] (the decimal mark
+    # ``decimal``), a subset of what float() reads, rounded the same way, and nan, inf and
+    # infinity, which _float_column refuses (tests/test_bench_data.py holds them to
+    # float()). Labels are parsed as dictionaries; every other column as text.
+    typed = data.find(b" ", header_end + 1, end) < 0 and (
+        sep == "\t" or data.find(b"\t", header_end + 1, end) < 0)
+    types = {}
+    for key, name in zip(keys, canonical, strict=True):
+        if name in _LABELS:
+            types[key] = pa.dictionary(pa.int32(), pa.string())
+        elif typed and _parsed_as_float(name):
+            types[key] = pa.float64()
+        else:
+            types[key] = pa.string()
     body = pa.py_buffer(data).slice(header_end + 1, end - header_end - 1)
     del data  # memory: ``body`` holds the bytes as long as they are needed
     try:
@@ -836,14 +902,15 @@ def _read_csv_fast(
                 ignore_empty_lines=False,
             ),
             convert_options=pa_csv.ConvertOptions(
-                column_types=dict.fromkeys(keys, pa.string()),
-                null_values=[],
+                column_types=types,
+                null_values=[""],  # a blank number is a null; text keeps its ''
                 strings_can_be_null=False,
                 quoted_strings_can_be_null=False,
                 check_utf8=True,
+                decimal_point=decimal,
             ),
         )
-    except (pa.ArrowException, ValueError):
+    except (pa.ArrowException, ValueError):  # a cell that is not a number, a ragged row, ...
         return None
     del body
     n = arrow.num_rows
@@ -871,25 +938,35 @@ _BLOCK_COLUMNS = 256
 
 def _fast_columns(names: list[str], parsed: list, n: int, decimal: str
                   ) -> dict[str, _Column] | None:
-    """The fast reader's columns (see :func:`_fast_column`) from pyarrow string columns
-    ``parsed`` (emptied as they are converted), or None if the cell-by-cell reader must read
-    the file.
+    """The fast reader's columns (see :func:`_fast_column`) from pyarrow columns ``parsed``
+    (emptied as they are converted), or None if the cell-by-cell reader must read the file.
 
-    Columns other than labels are checked and converted in blocks of adjacent columns of
+    Columns pyarrow parsed as float64 go to :func:`_float_column`. Other columns of text
+    are checked and converted in blocks of adjacent columns of
     up to :data:`_BLOCK_CELLS` cells (and :data:`_BLOCK_COLUMNS` columns), with one
     :func:`_plain_numbers` for the whole block: a file 10 rows by 20,000 columns costs a
     hundred pyarrow calls rather than 20,000 of each. A block with a cell that is not a plain
     number (a text column, say) is read column by column."""
     import pyarrow as pa
 
+    def text(k):  # a column of text cells, neither a label nor parsed as numbers
+        return names[k] not in _LABELS and parsed[k].type == pa.string()
+
     columns: dict[str, _Column] = {}
     per_block = min(_BLOCK_COLUMNS, max(1, _BLOCK_CELLS // max(n, 1)))
     j = 0
     while j < len(names):
-        block = [j]  # a label column alone; else adjacent columns other than labels
-        if names[j] not in _LABELS:
-            while (j + len(block) < len(names) and len(block) < per_block
-                   and names[j + len(block)] not in _LABELS):
+        if parsed[j].type == pa.float64():
+            chunked, parsed[j] = parsed[j], None
+            column = _float_column(names[j], chunked)
+            if column is None:
+                return None
+            columns[names[j]] = column
+            j += 1
+            continue
+        block = [j]  # a label column alone; else adjacent columns of text
+        if text(j):
+            while j + len(block) < len(names) and len(block) < per_block and text(j + len(block)):
                 block.append(j + len(block))
         values = None
         if len(block) > 1:
@@ -1171,7 +1248,8 @@ def _labels(table: _Table, name: str, what: str):
     ids: list[str] | None = None
     if col.codes is not None:
         codes, uniques = col.codes, col.uniques
-        missing = (uniques == "")[codes]
+        empty = uniques == ""
+        missing = empty[codes] if empty.any() else np.zeros(0, dtype=bool)
     else:
         if col.text is not None:
             ids = list(col.text)

@@ -79,6 +79,39 @@ def _code_version() -> str:
     return h.hexdigest()
 
 
+def prepare_in_background() -> threading.Thread:
+    """Start a thread that does what the first compiled calls of a fit wait for,
+    whatever the data, so that it runs while the caller reads its data file (pyarrow's
+    parse and NumPy's copies release the GIL): JAX's CPU backend and its first array, the
+    LAPACK kernels a deserialized program's lowering loads (from SciPy:
+    ``import scipy.linalg``), ``scipy.special`` (the Student-t quantile of the intervals)
+    and the hash of pamid's source (:func:`_code_version`, when the cache is on).
+
+    Best effort: whatever fails or is not done yet here is done where it is needed, as
+    without this thread (an import started here is waited for by Python's import lock).
+    ``pamid fit`` on 10,000 muscles: see benchmarks/README.md, end_to_end.py."""
+
+    def run() -> None:
+        try:
+            import jax.numpy as jnp
+
+            jnp.zeros(1).block_until_ready()
+            import scipy.linalg  # noqa: F401
+            import scipy.special  # noqa: F401
+
+            if _DIR is not None:
+                _code_version()
+        except Exception:  # noqa: BLE001 - a warm-up only; the real call reports errors
+            pass
+
+    # Not a daemon: the interpreter waits for it before it shuts down (a daemon thread
+    # still inside an extension's import when a command ends early, on a bad input say,
+    # crashed the process in its finalization: exit -11).
+    thread = threading.Thread(target=run, name="pamid-prepare")
+    thread.start()
+    return thread
+
+
 def _key(name: tuple, args) -> str:
     import jax
 

@@ -43,6 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._rank import RANK_PIVOT  # the one rank criterion of pamid's fits (``_rank``)
 from ._variable_projection import _parabolic_trial, _shrink_bracket, _small_cholesky_solve
 
 #: Lanes per compiled call on the CPU (``map_lanes`` chunks): a chunk's arrays (1.2 MB each
@@ -67,10 +68,6 @@ NEWTON_BELOW = 0.01
 #: large wander off (both measured on synthetic muscles; tests/test_fast_fit.py).
 GROW_LIMIT = 2.0
 
-#: Smallest Cholesky pivot of the equilibrated JᵀWJ (unit diagonal) for which the constants
-#: count as determined by the data (``sarosi_statistics``): smaller, and the inverse has
-#: lost more than half of its digits.
-RANK_PIVOT = 1e-13
 
 #: Successive parabolic steps that refine the best grid point of the start's scan.
 START_REFINE = 4

@@ -8,10 +8,17 @@ converges, so what matters for the batch is that no lane needs many steps; from 
 variable-projection start none does. Levenberg–Marquardt and jaxopt's Levenberg–Marquardt
 (from the 24-point variable-projection start) and pure variable projection are available
 for comparison, and jaxopt's L-BFGS-B for fits with bounds on the constants.
+
+:func:`fit_lanes` (what ``fit_least_squares`` runs) adds several starts and physical
+bounds around :func:`solve`: the top start candidates of a model as extra lanes of one
+batched solve, a second try from several starts for lanes one start did not serve, and a
+refit within the bounds of only the lanes whose constants left them (the constants that
+left held on their bound, the others fitted freely; L-BFGS-B where that is not enough).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -20,6 +27,7 @@ import numpy as np
 
 from ._batch import FitData, map_lanes
 from ._gauss_newton import CPU_CHUNK_LANES
+from ._rank import RANK_RTOL
 from ._spec import ModelSpec, builtin_key
 
 SOLVERS = (
@@ -109,6 +117,26 @@ def _solve_bounded(spec, theta0, x, y, w, lower, upper, max_steps):
     return jax.vmap(one)(theta0, x, y, w)
 
 
+@functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
+def _solve_fixed(spec, theta0, fixed, x, y, w, max_steps):
+    """Every lane with the constants ``fixed`` (M, p) held at their start values, the others
+    fitted without bounds (optimistix's Levenberg–Marquardt: a held constant's zero
+    Jacobian column is harmless under its damping). The active-set step of a bounded fit:
+    constants that left their bounds held on them."""
+    import optimistix as optx
+
+    def one(theta0, fixed, x, y, w):
+        def res(th, args):
+            return residuals(spec, jnp.where(fixed, theta0, th), *args)
+
+        sol = optx.least_squares(res, optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10),
+                                 theta0, args=(x, y, w), max_steps=max_steps, throw=False)
+        theta = jnp.where(fixed, theta0, sol.value)
+        return theta, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
+
+    return jax.vmap(one)(theta0, fixed, x, y, w)
+
+
 @functools.partial(jax.jit, static_argnames=("spec",))
 def _statistics(spec, theta, x, y, w):
     """SSE, Jacobian-based covariance factor, and the correlation of data and model."""
@@ -119,9 +147,15 @@ def _statistics(spec, theta, x, y, w):
         # (JᵀJ)⁻¹ through the SVD: stable, and honest (large) where J is nearly singular.
         # J = Q·R first: R has J's singular values and right vectors, and the SVD of the
         # small R plus the QR cost half the SVD of the tall J (measured at 1000 × 300 × 6).
-        _, s, vt = jnp.linalg.svd(jnp.linalg.qr(jac, mode="r"), full_matrices=False)
-        s_inv = jnp.where(s > s[0] * 1e-14, 1.0 / s, jnp.inf)
-        jtj_inv = (vt.T * s_inv**2) @ vt
+        # Columns scaled to unit length first, J = Js·D: the rank test (``_rank``, one
+        # criterion for every fit) does not depend on the constants' units, and
+        # (JᵀJ)⁻¹ = D⁻¹·(JsᵀJs)⁻¹·D⁻¹.
+        norms = jnp.sqrt(jnp.sum(jac**2, axis=0))
+        d = jnp.where(norms > 0, norms, 1.0)
+        _, s, vt = jnp.linalg.svd(jnp.linalg.qr(jac / d, mode="r"), full_matrices=False)
+        full_rank = s[-1] > s[0] * RANK_RTOL
+        s_inv = jnp.where(s > s[0] * RANK_RTOL, 1.0 / s, jnp.inf)
+        jtj_inv = ((vt.T * s_inv**2) @ vt) / (d[:, None] * d[None, :])
         model = spec.predict(theta, x)
         n = jnp.sum(w)
         mean_y = jnp.sum(w * y) / n
@@ -129,7 +163,6 @@ def _statistics(spec, theta, x, y, w):
         cov_ym = jnp.sum(w * (y - mean_y) * (model - mean_m))
         var_y = jnp.sum(w * (y - mean_y) ** 2)
         corr = cov_ym / jnp.sqrt(var_y * jnp.sum(w * (model - mean_m) ** 2))
-        full_rank = s[-1] > s[0] * 1e-14
         return jnp.sum(r**2), jtj_inv, corr, n, full_rank
 
     return jax.vmap(one)(theta, x, y, w)
@@ -227,3 +260,327 @@ def statistics(spec: ModelSpec, theta, data: FitData):
         data.w, cache_key=_key("statistics", spec),
     )
     return tuple(np.asarray(a) for a in out)
+
+
+# ----------------------------------------------------------------------------------------
+# Several starts, physical bounds, and what each lane's fit says about its constants
+# ----------------------------------------------------------------------------------------
+
+#: Starts per muscle of a fit from a model's start candidates (``spec.candidates``, best
+#: first), solved as extra lanes of the same batched solve, the best converged kept. One:
+#: on the Martens DMSP-10-250 map, the AARL 10 mm file and the bundled virtual file, the
+#: first start of every model reached the best optimum that 2, 4 or 8 starts found (SSE
+#: within 1e-13; Sárosi's also that of SciPy from 50 a3 starts), and 8 starts took up to
+#: 2.5× the time (``benchmarks/start_settings.py``, ``benchmarks/README.md``).
+DEFAULT_STARTS = 1
+#: Starts per muscle of the second try, for the muscles one start did not serve (not
+#: converged, or constants outside their bounds).
+RETRY_STARTS = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class LaneFit:
+    """The constants of every lane with what the fit learnt on the way (NumPy arrays with a
+    leading muscle axis).
+
+    Attributes:
+        theta, ok, steps: the constants, the solver's verdict and its step count.
+        free_theta: the constants of the fit without bounds (``theta`` where no bound
+            applies).
+        left_bounds: the fit without bounds ended outside the bounds (or not finite), and
+            the lane was refitted within them.
+        ran_away: of those, the lanes whose fit without bounds found no determined optimum
+            (not converged, not finite, or a rank-deficient Jacobian where it stopped): a
+            constant ran off, the data do not pin it.
+        at_lower, at_upper: (M, p) constants on their lower / upper bound.
+        starts: starts per muscle of the main solve.
+    """
+
+    theta: np.ndarray
+    ok: np.ndarray
+    steps: np.ndarray
+    free_theta: np.ndarray
+    left_bounds: np.ndarray
+    ran_away: np.ndarray
+    at_lower: np.ndarray
+    at_upper: np.ndarray
+    starts: int
+
+
+@functools.partial(jax.jit, static_argnames=("spec",))
+def _lane_sse(spec, theta, x, y, w):
+    """Σ w·(model − data)² per lane; +inf where it is not finite."""
+    sse = jax.vmap(lambda t, x, y, w: jnp.sum(residuals(spec, t, x, y, w) ** 2))(theta, x, y, w)
+    return jnp.where(jnp.isfinite(sse), sse, jnp.inf)
+
+
+@functools.partial(jax.jit, static_argnames=("spec",))
+def lane_jacobian(spec, theta, x, y, w):
+    """The Jacobian of one lane's weighted residuals at ``theta`` (n × p)."""
+    return jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
+
+
+def _repeat_lanes(data: FitData, k: int) -> FitData:
+    """Every lane of ``data`` ``k`` times in a row (lane i → lanes i·k … i·k + k − 1)."""
+    rep = lambda a: jnp.repeat(jnp.asarray(a), k, axis=0)  # noqa: E731
+    return data._replace(x=tuple(rep(a) for a in data.x), y=rep(data.y), w=rep(data.w),
+                         curve=rep(data.curve))
+
+
+def _take_lanes(data: FitData, idx) -> FitData:
+    take = lambda a: jnp.asarray(a)[idx]  # noqa: E731
+    return data._replace(x=tuple(take(a) for a in data.x), y=take(data.y), w=take(data.w),
+                         curve=take(data.curve))
+
+
+def _best_of(spec, theta, ok, steps, data_rep, k, lower=None, upper=None):
+    """Per muscle, the best of its ``k`` lanes (rows i·k …): the lowest SSE among the
+    converged ones within the bounds (``lower``, ``upper``; where none is, among the
+    converged ones), else the lowest SSE of all."""
+    sse = np.asarray(_lane_sse(spec, jnp.asarray(theta), data_rep.x, data_rep.y, data_rep.w))
+    sse = np.where(np.all(np.isfinite(theta), axis=-1), sse, np.inf).reshape(-1, k)
+    ok = np.asarray(ok).reshape(-1, k)
+    if lower is not None:
+        with np.errstate(invalid="ignore"):
+            inside = np.all((theta >= lower) & (theta <= upper), axis=-1).reshape(-1, k)
+        ok_inside = ok & inside
+        any_inside = np.any(ok_inside, axis=1, keepdims=True)
+        ok = np.where(any_inside, ok_inside, ok)
+        if not np.all(any_inside):
+            # No lane of a muscle converged within the bounds: the one that will be refitted
+            # within them is the one whose point, clipped into them, fits best (a far-away
+            # optimum with a lower SSE can clip to a poor start).
+            clipped = np.asarray(_lane_sse(spec, jnp.asarray(np.clip(theta, lower, upper)),
+                                           data_rep.x, data_rep.y, data_rep.w)).reshape(-1, k)
+            sse = np.where(any_inside, sse, clipped)
+    score = np.where(ok, sse, np.inf)
+    pick = np.where(np.any(np.isfinite(score), axis=1), np.argmin(score, axis=1),
+                    np.argmin(sse, axis=1))
+    rows = np.arange(len(pick)) * k + pick
+    return np.asarray(theta)[rows], ok.reshape(-1)[rows], np.asarray(steps)[rows]
+
+
+_CANDIDATES: dict = {}
+
+
+def start_candidates(spec: ModelSpec, data: FitData, bounds=None):
+    """Start candidates of every muscle, best first: ``(theta (M, K, p), sse (M, K))``.
+
+    The model's own (``spec.candidates``) where it has them; for a model with its own
+    start and a registered fast path (Sárosi), the same variable projection
+    (:mod:`._start`) over trial values of its nonlinear constants within ``bounds`` (or the
+    spec's). None where neither is possible (a nonlinear constant without finite bounds)."""
+    if spec.candidates is not None:
+        return map_lanes(spec.candidates, data.x, data.y, data.w,
+                         cache_key=_key("candidates", spec))
+    lower, upper = _bounds_arrays(spec, bounds)
+    if spec.model_class is None or lower is None:
+        return None
+    key = (id(spec), tuple(lower.tolist()), tuple(upper.tolist()))
+    if key not in _CANDIDATES:
+        from ._start import linear_constants, projected_candidates, trial_values
+
+        finite = np.isfinite(lower) & np.isfinite(upper)
+        with np.errstate(invalid="ignore"):
+            reference = np.where(finite, 0.5 * (lower + upper), 1.0)
+        inputs = tuple(spec.model_class.inputs[: len(spec.columns)])
+        linear = linear_constants(spec.predict, spec.n_params, inputs, reference)
+        if not np.all(finite | linear):
+            _CANDIDATES[key] = None
+        else:
+            trials = trial_values(reference, lower, upper, ~linear)
+            _CANDIDATES[key] = jax.jit(projected_candidates(spec.predict, linear, trials,
+                                                            lower, upper))
+    fn = _CANDIDATES[key]
+    return None if fn is None else fn(data.x, data.y, data.w)
+
+
+def _bounds_arrays(spec: ModelSpec, bounds):
+    """The bounds of a fit as two float arrays of length p, or (None, None): ``bounds``
+    where it gives a finite value, the model's physical bounds (``spec.bounds``) elsewhere."""
+    if bounds is None and spec.bounds is None:
+        return None, None
+    if bounds is None and id(spec) in _OWN_BOUNDS and _OWN_BOUNDS[id(spec)][0] is spec:
+        return _OWN_BOUNDS[id(spec)][1]
+    p = spec.n_params
+    own = spec.bounds if spec.bounds is not None else (-np.inf, np.inf)
+    own_lower, own_upper = (np.broadcast_to(np.asarray(b, dtype=np.float64), (p,)) for b in own)
+    if bounds is None:
+        lower, upper = own_lower.copy(), own_upper.copy()
+    else:
+        lower, upper = (np.broadcast_to(np.asarray(b, dtype=np.float64), (p,)).copy()
+                        for b in bounds)
+        if np.any(lower > upper):
+            raise ValueError("every lower bound must be at most its upper bound")
+        user_lower, user_upper = np.isfinite(lower), np.isfinite(upper)
+        lower = np.where(user_lower, lower, own_lower)
+        upper = np.where(user_upper, upper, own_upper)
+        # A model bound that contradicts the user's gives way to it.
+        clash = lower > upper
+        lower = np.where(clash & ~user_lower, -np.inf, lower)
+        upper = np.where(clash & ~user_upper, np.inf, upper)
+    out = (None, None) if np.all(np.isinf(lower)) and np.all(np.isinf(upper)) else (lower, upper)
+    if bounds is None:
+        _OWN_BOUNDS[id(spec)] = (spec, out)
+    return out
+
+
+#: The spec's own bounds as arrays, by spec (``_bounds_arrays``: once per spec, not per fit).
+_OWN_BOUNDS: dict = {}
+
+
+def _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower=None, upper=None):
+    """The best of the top ``k`` start candidates of every muscle, solved as k lanes per
+    muscle in one batched call; None where the model has no candidates."""
+    cands = start_candidates(spec, data)
+    if cands is None:
+        return None
+    theta0 = np.asarray(cands[0])
+    if spec.candidates is None:  # the model's own start first, then the candidates
+        own = map_lanes(spec.start, data.x, data.y, data.w, cache_key=_key("start", spec))
+        theta0 = np.concatenate([np.asarray(own)[:, None], theta0], axis=1)
+    k = min(k, theta0.shape[1])
+    rep = _repeat_lanes(data, k)
+    theta, ok, steps = solve(spec, rep, solver=solver,
+                             theta0=theta0[:, :k].reshape(-1, spec.n_params),
+                             max_steps=max_steps, rtol=rtol, atol=atol)
+    return _best_of(spec, theta, ok, steps, rep, k, lower, upper)
+
+
+def _rank_deficient(spec, theta, data, lanes, free=None) -> np.ndarray:
+    """For the given lanes: whether the Jacobian (of the ``free`` constants, (M, p) mask,
+    default all) fails the rank criterion at ``theta``; True where it is not finite."""
+    out = np.zeros(len(lanes), dtype=bool)
+    for j, i in enumerate(lanes):
+        jac = _jacobian_rows(spec, theta[i], data, i)
+        cols = np.ones(spec.n_params, bool) if free is None else free[i]
+        if not np.any(cols):
+            continue
+        from ._rank import null_direction
+
+        ratio, _ = null_direction(jac[:, cols])
+        out[j] = not ratio > RANK_RTOL
+    return out
+
+
+def _jacobian_rows(spec, theta, data: FitData, i: int) -> np.ndarray:
+    """Lane ``i``'s Jacobian at ``theta`` on its rows of positive weight."""
+    w = np.asarray(data.w[i])
+    jac = np.asarray(lane_jacobian(spec, jnp.asarray(theta, dtype=jnp.float64),
+                                   tuple(jnp.asarray(a[i]) for a in data.x),
+                                   jnp.asarray(data.y[i]), jnp.asarray(w)))
+    return jac[w > 0]
+
+
+def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", bounds=None,
+              starts: int | None = None, theta0=None, max_steps: int = 100,
+              rtol: float = 1e-10, atol: float = 1e-10) -> LaneFit:
+    """Fit every muscle, from several starts where one is not enough, within bounds.
+
+    1. Without bounds (fast): the model's registered kernels (Sárosi) from their own start;
+       any other model from its top ``starts`` start candidates (default
+       :data:`DEFAULT_STARTS`) as extra lanes of one batched solve, the best converged kept.
+    2. Lanes that did not converge or left the bounds (``bounds``, else the model's physical
+       ``spec.bounds``) start again from the top :data:`RETRY_STARTS` candidates (for
+       Sárosi: trial values of a3 within its bounds).
+    3. Lanes still outside the bounds are refitted within them (jaxopt's L-BFGS-B) from the
+       clipped point and the candidates, the best kept; constants on a bound are marked.
+       A lane whose fit without bounds found no determined optimum is marked as ran away.
+    """
+    k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
+    k_retry = max(k, RETRY_STARTS)
+    lower, upper = _bounds_arrays(spec, bounds)
+    out = None
+    if theta0 is None and k > 1 and not (solver == "gauss-newton" and spec.fast_path is not None):
+        out = _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower, upper)
+    several = out is not None  # already from several starts: no second try below
+    if out is None:
+        out = solve(spec, data, solver=solver, theta0=theta0, max_steps=max_steps,
+                    rtol=rtol, atol=atol)
+    theta, ok, steps = (np.array(a) for a in out)
+    m, p = theta.shape
+    finite = np.all(np.isfinite(theta), axis=-1)
+
+    def outside(t):
+        if lower is None:
+            return ~np.all(np.isfinite(t), axis=-1)
+        with np.errstate(invalid="ignore"):
+            return np.any((t < lower) | (t > upper), axis=-1) | ~np.all(np.isfinite(t), axis=-1)
+
+    # 2. Another try from several starts for the lanes one start did not serve.
+    out_now = outside(theta)
+    retry = np.flatnonzero(~ok | out_now)
+    if (retry.size and theta0 is None and not (several and k >= k_retry)
+            and solver in ("gauss-newton", "levenberg-marquardt")):
+        sub = _take_lanes(data, retry)
+        cands = start_candidates(spec, sub, bounds)
+        if cands is not None:
+            kk = min(k_retry, cands[0].shape[1])
+            rep = _repeat_lanes(sub, kk)
+            t2, ok2, st2 = solve(spec, rep, solver=solver,
+                                 theta0=np.asarray(cands[0])[:, :kk].reshape(-1, p),
+                                 max_steps=max_steps, rtol=rtol, atol=atol)
+            t2, ok2, st2 = _best_of(spec, t2, ok2, st2, rep, kk, lower, upper)
+            sse_old = np.asarray(_lane_sse(spec, jnp.asarray(theta[retry]), sub.x, sub.y, sub.w))
+            sse_new = np.asarray(_lane_sse(spec, jnp.asarray(t2), sub.x, sub.y, sub.w))
+            # Better: in bounds where the old one was not, else converged where the old one
+            # was not, else a lower SSE.
+            key_old = np.stack([outside(theta[retry]), ~ok[retry], sse_old], -1)
+            key_new = np.stack([outside(t2), ~ok2, sse_new], -1)
+            better = [tuple(a) < tuple(b) for a, b in zip(key_new, key_old)]
+            sel = retry[np.asarray(better, dtype=bool)]
+            pos = np.asarray(better, dtype=bool)
+            theta[sel], ok[sel], steps[sel] = t2[pos], ok2[pos], steps[sel] + st2[pos]
+            out_now = outside(theta)
+    free_theta = theta.copy()
+    free_ok = ok.copy()
+    finite = np.all(np.isfinite(theta), axis=-1)
+    left = out_now if lower is not None else np.zeros(m, bool)
+    ran_away = np.zeros(m, bool)
+    at_lower = np.zeros((m, p), bool)
+    at_upper = np.zeros((m, p), bool)
+    lanes = np.flatnonzero(left)
+    if lanes.size:
+        sub = _take_lanes(data, lanes)
+        # 3a. The constants that left their bounds held on them, the others fitted freely
+        # (an active-set step; for a model linear in the others, one solve).
+        start = np.clip(theta[lanes], lower, upper)
+        cands = None
+        if not np.all(np.isfinite(start)):
+            cands = start_candidates(spec, sub, (lower, upper))
+            best = (np.asarray(cands[0])[:, 0] if cands is not None else
+                    np.broadcast_to(np.where(np.isfinite(lower) & np.isfinite(upper),
+                                             0.5 * (lower + upper), np.clip(0.0, lower, upper)),
+                                    start.shape))
+            start = np.where(np.isfinite(start), start, best)
+        with np.errstate(invalid="ignore"):
+            held = (theta[lanes] < lower) | (theta[lanes] > upper) | ~np.isfinite(theta[lanes])
+        tb, okb, stb = map_lanes(
+            lambda t0, f, x, y, w: _solve_fixed(spec, t0, f, x, y, w, max_steps),
+            jnp.asarray(start), jnp.asarray(held), sub.x, sub.y, sub.w)
+        tb, okb, stb = np.array(tb), np.array(okb), np.array(stb)
+        # 3b. Where that left another constant outside (or failed): L-BFGS-B within the
+        # bounds, from the clipped point.
+        redo = np.flatnonzero(outside(tb) | ~okb)
+        if redo.size:
+            sub2 = _take_lanes(sub, redo)
+            t3, ok3, st3 = solve(spec, sub2, theta0=np.clip(np.where(np.isfinite(tb[redo]),
+                                                                      tb[redo], start[redo]),
+                                                             lower, upper),
+                                 bounds=(lower, upper), max_steps=max_steps)
+            tb[redo], okb[redo], stb[redo] = t3, ok3, stb[redo] + st3
+        theta[lanes], ok[lanes], steps[lanes] = tb, okb, steps[lanes] + stb
+        width = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
+        tol = 1e-9 * np.maximum(width, np.maximum(np.abs(np.where(np.isfinite(lower), lower, 0)),
+                                                  np.abs(np.where(np.isfinite(upper), upper, 0))))
+        at_lower[lanes] = np.abs(tb - lower) <= tol
+        at_upper[lanes] = np.abs(tb - upper) <= tol
+        # Ran away: the free fit found no determined optimum outside the bounds.
+        sound = free_ok[lanes] & finite[lanes]
+        check = lanes[sound]
+        deficient = _rank_deficient(spec, free_theta, data, check) if check.size else []
+        ran = ~sound
+        ran[np.flatnonzero(sound)] = deficient
+        ran_away[lanes] = ran
+    return LaneFit(theta=theta, ok=ok, steps=steps, free_theta=free_theta, left_bounds=left,
+                   ran_away=ran_away, at_lower=at_lower, at_upper=at_upper, starts=k)

@@ -442,3 +442,14 @@ def check_callable(spec: ModelSpec, where: str) -> None:
         raise ModelDefinitionError(
             f"{where}: {cls.__name__}.__call__ returned shape {shape} for inputs of shape "
             f"{np.shape(probe[0])}: it must return one force per sample")
+
+
+def _register_published() -> None:
+    """The published static force laws (:mod:`pamid._models._published`), by their names."""
+    from .._models._published import published_models
+
+    for model, options in published_models():
+        register_model(model, **options)
+
+
+_register_published()

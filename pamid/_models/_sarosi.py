@@ -50,6 +50,10 @@ class Sarosi(ForceModel):
     inputs: ClassVar[tuple[str, ...]] = ("pressure_bar", "contraction_pct")
     name: ClassVar[str] = "sarosi"
     source: ClassVar[str] = "Sárosi eq. 2.1"
+    #: a3 < 0: the force falls with contraction (Table 3-1: a3 = −0.329 /%, 95% CI −0.335 …
+    #: −0.322; a DMSP-10: −0.342 /%); a3 = −3 /% is a fall of e⁻³ within 1 % of contraction,
+    #: finer than any bench's contraction steps resolve.
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"a3": (-3.0, 0.0)}
 
     def __init__(self, a1, a2, a3, a4, a5, a6):
         self.a1, self.a2, self.a3 = jnp.asarray(a1), jnp.asarray(a2), jnp.asarray(a3)
