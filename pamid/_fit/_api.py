@@ -61,7 +61,7 @@ class FitResult:
     ci95_hac: np.ndarray | None = None
     cluster_groups: np.ndarray | None = None  # curves per muscle (G; t on G − 1 dof)
     hac_bandwidth: np.ndarray | None = None  # Andrews' bandwidth, in rows
-    residual_lag1: np.ndarray | None = None  # lag-1 autocorrelation within curves (M,)
+    residual_lag1: np.ndarray | None = None  # lag-1 autocorrelation of the residual (M,)
     residual_lag1_p: np.ndarray | None = None  # its one-sided p-value (independence)
     interval_notes: tuple[str | None, ...] = ()  # per muscle: which interval holds, why
     interval_shown: str = "wald-t"
@@ -375,7 +375,8 @@ def fit_least_squares(
         intervals: any of "wald" (always computed), "profile", "bootstrap", "cluster"
             (cluster-robust CR3 by curve, t on G − 1: holds under residuals correlated
             within curves) and "hac" (Newey–West within trials); see ``_correlated.py``.
-            The residual's lag-1 autocorrelation within curves is always measured;
+            The residual's lag-1 autocorrelation is always measured (within curves when
+            an interval above needs them, else between consecutive samples);
             where it is significant, ``interval_notes`` say which interval holds, why.
         n_bootstrap: bootstrap replicates per muscle (whole curves resampled).
         key: PRNG key, required for the bootstrap.
@@ -397,9 +398,12 @@ def fit_least_squares(
         raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")
     if isinstance(data, BenchData):
         names = tuple(m if data.has_muscle_column else None for m in data.muscles)
-        # Curves always: the residual's lag-1 autocorrelation is measured within them.
-        trials = _correlated.trial_groups(data)
-        data = bench_to_fit_data(data, spec)
+        # Curves (3 s for 3,000,000 rows) only for the intervals that resample or cluster
+        # them; without them the residual's lag-1 autocorrelation is measured between
+        # consecutive samples of each muscle, which crosses a curve boundary once a curve.
+        grouped = bool({"bootstrap", "cluster", "hac"} & set(intervals))
+        trials = _correlated.trial_groups(data) if grouped else None
+        data = bench_to_fit_data(data, spec, curves=grouped)
     else:
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
         trials = None

@@ -353,7 +353,7 @@ def trial_groups(bench) -> np.ndarray:
 def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
             level: float = 0.95) -> dict:
     """What :func:`pamid.fit_least_squares` adds to its result: the residual's lag-1
-    autocorrelation within curves (always), the "cluster" interval (CR3 by curve, t on
+    autocorrelation (always; within curves where ``data`` carries them), the "cluster" interval (CR3 by curve, t on
     G − 1) and the "hac" interval (Newey–West within ``trials``, default within curves)
     where asked for, and per muscle a note on which interval holds and why."""
     curves = np.asarray(data.curve)
@@ -384,8 +384,8 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
         if not flagged[i]:
             notes.append(None)
             continue
-        head = (f"residual lag-1 autocorrelation {rho[i]:.2f} within curves: the Wald "
-                "interval assumes independent noise and is too narrow; ")
+        head = (f"residual lag-1 autocorrelation {rho[i]:.2f} between consecutive samples: "
+                "the Wald interval assumes independent noise and is too narrow; ")
         if g is not None and g[i] >= 2:
             few = (f" (only {int(g[i])} curves; pamid's coverage study had 10–24)"
                    if g[i] < 10 else "")
