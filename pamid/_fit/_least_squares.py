@@ -120,19 +120,29 @@ def _solve_bounded(spec, theta0, x, y, w, lower, upper, max_steps):
 @functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
 def _solve_fixed(spec, theta0, fixed, x, y, w, max_steps):
     """Every lane with the constants ``fixed`` (M, p) held at their start values, the others
-    fitted without bounds (optimistix's Levenberg–Marquardt: a held constant's zero
-    Jacobian column is harmless under its damping). The active-set step of a bounded fit:
-    constants that left their bounds held on them."""
-    import optimistix as optx
+    fitted without bounds by pamid's one masked loop
+    (:func:`pamid._fit._engine.levenberg_marquardt`). The active-set step of a bounded fit:
+    constants that left their bounds held on them.
+
+    Returns (theta, ok, steps): ``ok`` also asks that the held point be a constrained
+    optimum (Karush–Kuhn–Tucker): the sum of squares must not fall when a held constant
+    moves back into the interior, i.e. its gradient points out of the bounds (≥ 0 for a
+    constant held from below, where θ0 is above the value the free fit wanted, and ≤ 0 for
+    one held from above; the side is the sign of the step the free fit took past it)."""
+    from ._engine import CONVERGED, levenberg_marquardt
 
     def one(theta0, fixed, x, y, w):
-        def res(th, args):
-            return residuals(spec, jnp.where(fixed, theta0, th), *args)
+        def linearise(th):
+            jac, r = jax.jacfwd(lambda t: (residuals(spec, t, x, y, w),) * 2,
+                                has_aux=True)(th)
+            return r, jac
 
-        sol = optx.least_squares(res, optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10),
-                                 theta0, args=(x, y, w), max_steps=max_steps, throw=False)
-        theta = jnp.where(fixed, theta0, sol.value)
-        return theta, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
+        mask = jnp.where(fixed, 0.0, 1.0)
+        sol = levenberg_marquardt(linearise, theta0, mask, max_steps=max_steps, rtol=1e-12,
+                                  floor=jnp.sum(w > 0) * 1e-20)
+        r, jac = linearise(sol.params)
+        grad = jac.T @ r  # ½·∂SSE/∂θ, held constants included
+        return sol.params, sol.result == CONVERGED, sol.steps, grad
 
     return jax.vmap(one)(theta0, fixed, x, y, w)
 
@@ -555,13 +565,18 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
             start = np.where(np.isfinite(start), start, best)
         with np.errstate(invalid="ignore"):
             held = (theta[lanes] < lower) | (theta[lanes] > upper) | ~np.isfinite(theta[lanes])
-        tb, okb, stb = map_lanes(
+        tb, okb, stb, grad = map_lanes(
             lambda t0, f, x, y, w: _solve_fixed(spec, t0, f, x, y, w, max_steps),
             jnp.asarray(start), jnp.asarray(held), sub.x, sub.y, sub.w)
-        tb, okb, stb = np.array(tb), np.array(okb), np.array(stb)
-        # 3b. Where that left another constant outside (or failed): L-BFGS-B within the
-        # bounds, from the clipped point.
-        redo = np.flatnonzero(outside(tb) | ~okb)
+        tb, okb, stb, grad = (np.array(a) for a in (tb, okb, stb, grad))
+        # A held constant whose gradient points into the bounds is no constrained optimum:
+        # letting it go lowers the sum of squares (the free fit ran past the bound far from
+        # where the bounded optimum is).
+        with np.errstate(invalid="ignore"):
+            inward = held & (((tb <= lower) & (grad < 0)) | ((tb >= upper) & (grad > 0)))
+        # 3b. Where that left another constant outside, failed, or stopped on a bound that
+        # is not the optimum's: L-BFGS-B within the bounds, from the clipped point.
+        redo = np.flatnonzero(outside(tb) | ~okb | inward.any(axis=-1))
         if redo.size:
             sub2 = _take_lanes(sub, redo)
             t3, ok3, st3 = solve(spec, sub2, theta0=np.clip(np.where(np.isfinite(tb[redo]),
