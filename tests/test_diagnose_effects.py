@@ -188,3 +188,40 @@ def test_two_effects_together_softening_and_transient(tmp_path, clean):
                       transient_N_per_kPa=0.05, transient_tau_s=0.3, dwell_s=1.0))
     assert sorted(d.selected) == ["softening", "transient"]
     assert d.rmse_after < 1.05 * clean.rmse_before
+
+
+def test_the_terms_a_model_already_contains_are_found_from_the_model_not_its_name():
+    """Sárosi eq. 2.1 and Cullinan eq. 3 are affine in the pressure, Cullinan quadratic in
+    y: those Legendre terms are not offered as effects. Found from the Jacobian's span, so
+    a user's model gets the same treatment."""
+    import pandas as pd
+
+    from pamid._diagnose._static import degrees_in_model
+    from pamid._fit._spec import CULLINAN, SAROSI, get_model
+
+    rng = np.random.default_rng(3)
+    p = rng.uniform(100.0, 600.0, 200)
+    k = rng.uniform(0.0, 20.0, 200)
+    frame = pd.DataFrame({"pressure_kPa": p, "contraction_pct": k, "contraction_mm": 2.5 * k})
+    ranges = {c: (float(frame[c].min()), float(frame[c].max())) for c in frame}
+    sarosi = degrees_in_model(SAROSI, np.array([-4.4, 281.0, -0.33, -9.3, 302.0, -264.0]),
+                              (p / 100.0, k), frame, ["pressure_kPa", "contraction_pct"],
+                              ranges)
+    assert sarosi == {"pressure_kPa": (1,), "contraction_pct": ()}
+    cullinan = degrees_in_model(CULLINAN, np.array([10.0, 1.0, 2.0, 0.01, 0.1]),
+                                (p, 2.5 * k), frame, ["pressure_kPa", "contraction_mm"], ranges)
+    assert cullinan == {"pressure_kPa": (1,), "contraction_mm": (1, 2)}
+
+    class Plane(pamid.ForceModel):
+        c0: float = 0.0
+        c1: float = 1.0
+        c2: float = -10.0
+        units = {"c0": "N", "c1": "N/kPa", "c2": "N/%"}
+        inputs = ("pressure_kPa", "contraction_pct")
+
+        def __call__(self, pressure_kPa, contraction_pct):
+            return self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
+
+    plane = degrees_in_model(get_model(Plane), np.array([0.0, 1.0, -10.0]), (p, k), frame,
+                             ["pressure_kPa", "contraction_pct"], ranges)
+    assert plane == {"pressure_kPa": (1,), "contraction_pct": (1,)}

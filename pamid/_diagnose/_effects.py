@@ -112,6 +112,8 @@ class FileContext:
     has_pressure_steps: bool
     max_repeat: int
     distinct: dict[str, int]
+    #: Per covariate, the Legendre degrees the base model already contains.
+    in_model: dict[str, tuple[int, ...]] = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass
@@ -428,8 +430,6 @@ def _softening() -> EffectDefinition:
 
 
 def _covariate_family(file: FileContext):
-    from ._static import _IN_BASE_MODEL
-
     out = []
     for c in file.covariates:
         if c == "direction":
@@ -437,7 +437,7 @@ def _covariate_family(file: FileContext):
         lo, hi = file.ranges[c]
         top = min(COVARIATE_DEGREE, file.distinct[c] - 1)
         degrees = [k for k in range(1, top + 1)
-                   if k not in _IN_BASE_MODEL.get((file.spec.name, c), ())]
+                   if k not in file.in_model.get(c, ())]
         if degrees:
             out.append((f"covariate:{c}", c, tuple(Constant(f"b{k}", "N") for k in degrees)))
     return out

@@ -53,6 +53,7 @@ from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
 from ._effects import (
+    COVARIATE_DEGREE,
     STATIC_EFFECTS,
     Effect,
     FileContext,
@@ -61,6 +62,7 @@ from ._effects import (
     time_since_step,
     transforms,
 )
+from ._residual import legendre_basis, scaled
 from ._select import SetFit
 
 N_FOLDS = 5
@@ -69,14 +71,34 @@ MAX_ITER = 60
 #: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
 RTOL = 1e-11
 ATOL_N = 1e-9
-#: Legendre degrees of a covariate that the base model already contains (at fixed values of
-#: the other inputs): Sárosi eq. 2.1 and Cullinan eq. 3 are affine in the pressure, and
-#: Cullinan eq. 3 is quadratic in the contraction y. Those terms would be unidentifiable.
-_IN_BASE_MODEL = {
-    ("sarosi", "pressure_kPa"): (1,),
-    ("cullinan", "pressure_kPa"): (1,),
-    ("cullinan", "contraction_mm"): (1, 2),
-}
+#: A covariate's Legendre term lies in the base model when least squares on the model's
+#: Jacobian columns reproduces it to this fraction of its norm (:func:`degrees_in_model`).
+IN_MODEL_RTOL = 1e-8
+
+
+def degrees_in_model(spec: ModelSpec, theta, x, frame: pd.DataFrame, covariates,
+                     ranges) -> dict[str, tuple[int, ...]]:
+    """Per covariate, the Legendre degrees (1 … COVARIATE_DEGREE) that the base model
+    already contains: those in the span of its Jacobian columns on one muscle's rows. A
+    model affine in the pressure (Sárosi eq. 2.1, Cullinan eq. 3) contains degree 1 of the
+    pressure, Cullinan eq. 3 degrees 1 and 2 of the contraction y; such a term added as an
+    effect would be unidentifiable. Found from the model, for any ForceModel."""
+    jac = np.asarray(jax.jacfwd(lambda th: spec.predict(th, tuple(jnp.asarray(v) for v in x)))(
+        jnp.asarray(theta)))
+    out = {}
+    for c in covariates:
+        if c == "direction" or c not in frame:
+            continue
+        lo, hi = ranges[c]
+        basis = legendre_basis(scaled(frame[c].to_numpy(float), lo, hi), COVARIATE_DEGREE)
+        inside = []
+        for k in range(1, COVARIATE_DEGREE + 1):
+            f = basis[k - 1]
+            coef, *_ = np.linalg.lstsq(jac, f, rcond=None)
+            if np.linalg.norm(jac @ coef - f) <= IN_MODEL_RTOL * max(np.linalg.norm(f), 1e-300):
+                inside.append(k)
+        out[c] = tuple(inside)
+    return out
 
 
 def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFrame:
@@ -212,6 +234,9 @@ class StaticProblem:
             has_pressure_steps="time_since_step_s" in self.covariates,
             max_repeat=int(rows["repeat"].max()) if "repeat" in rows else 0,
             distinct={c: int(rows[c].nunique()) for c in self.covariates},
+            in_model=degrees_in_model(self.spec, self.theta0[0], self.spec.x_from_frame(
+                self.frames[0]), self.frames[0], self.covariates,
+                {c: (float(rows[c].min()), float(rows[c].max())) for c in self.covariates}),
         )
 
     def _muscle_context(self, i, f, c, x) -> MuscleContext:
