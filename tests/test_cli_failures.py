@@ -286,8 +286,10 @@ def test_lane_temporaries_grow_linearly_with_the_rows(tmp_path):
     for rows in (2000, 20000):
         problem = _problem(rows, tmp_path)
         lanes = 8
+        # colmask: the transforms' flags (compliance, sensor offset), then the 4 columns'.
+        n_tr = len(_static.transforms())
         args = (np.zeros(lanes, int), np.arange(lanes) % 6,
-                np.tile(np.arange(4), (lanes, 1)), np.ones((lanes, 4)))
+                np.tile(np.arange(4), (lanes, 1)), np.ones((lanes, n_tr + 4)))
         compiled = _static._fit_lanes_jit.lower(
             problem.spec, True, problem._shared_arrays(), *args).compile()
         temps[rows] = compiled.memory_analysis().temp_size_in_bytes

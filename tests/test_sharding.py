@@ -124,7 +124,10 @@ def test_sharded_fit_equals_one_device():
     assert out["jaxopt"]["theta_vs_one_device"] <= 1e-6
     # Chunks and devices together: 8 lanes per device and call → 3 calls of 16 lanes.
     assert out["chunked"]["calls"] == [16, 16, 16]
-    assert out["chunked"]["sse"] <= 1e-12 and out["chunked"]["jtj_inv"] <= 1e-12
+    # (JᵀJ)⁻¹ through an SVD of the column-scaled Jacobian: XLA's batched SVD rounds
+    # differently for another batch size (measured 4.5e-11 relative), at the scale of
+    # the matrix's condition number times the unit roundoff.
+    assert out["chunked"]["sse"] <= 1e-12 and out["chunked"]["jtj_inv"] <= 1e-9
 
 
 def test_distributed_fit_two_processes(tmp_path):

@@ -408,6 +408,9 @@ class McmcResult:
                 f"rmse_{unit}": _num(self.rmse_N[i]),
                 "r": _num(self.r[i]),
                 "converged": bool(self.converged[i]),
+                # the run-length control's verdict, in the fit's result codes: not
+                # converged means the step budget ran out before R-hat and ESS were met
+                "status": "converged" if self.converged[i] else "max_steps",
                 # why the least-squares start is not trusted, as `pamid fit` says it
                 "message": self.ls.message(i) if self.ls is not None else None,
                 "params": entries,
