@@ -137,4 +137,6 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
         order = jnp.argsort(sse)
         return theta[order], sse[order]
 
-    return jax.vmap(one_muscle)
+    # Compiled once per model (the spec keeps this function): called op by op, the start
+    # of a linear model took 20 ms where its whole fit takes 0.5 ms.
+    return jax.jit(jax.vmap(one_muscle))
