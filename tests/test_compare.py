@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from force_models import PLANE_SOURCE, Plane, Quadratic
 
 import pamid
 from pamid._cli import main
@@ -30,34 +31,10 @@ TRUE = (5.0, 1.2, -12.0, 0.02)  # c0 [N], c1 [N/kPa], c2 [N/%], c3 [N/(kPa·%)]
 NOISE_N = 1.0
 
 
-class Interaction(pamid.ForceModel):
+class Interaction(Quadratic):
     """F = c0 + c1·p + c2·κ + c3·p·κ (the law the data are drawn from)."""
 
-    c0: float = 0.0
-    c1: float = 1.0
-    c2: float = -10.0
-    c3: float = 0.0
-    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%", "c3": "N/(kPa*%)"}
-    inputs = ("pressure_kPa", "contraction_pct")
     name = "interaction"
-
-    def __call__(self, pressure_kPa, contraction_pct):
-        return (self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
-                + self.c3 * pressure_kPa * contraction_pct)
-
-
-class Plane(pamid.ForceModel):
-    """F = c0 + c1·p + c2·κ (the wrong law: no interaction)."""
-
-    c0: float = 0.0
-    c1: float = 1.0
-    c2: float = -10.0
-    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%"}
-    inputs = ("pressure_kPa", "contraction_pct")
-    name = "plane"
-
-    def __call__(self, pressure_kPa, contraction_pct):
-        return self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
 
 
 class Redundant(pamid.ForceModel):
@@ -100,7 +77,8 @@ def _bench_frame(seed: int, trials: bool) -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def specs():
-    return {cls.name: spec_from_model(cls) for cls in (Interaction, Plane, Redundant)}
+    specs = [spec_from_model(cls) for cls in (Interaction, Plane, Redundant)]
+    return {spec.name: spec for spec in specs}
 
 
 @pytest.fixture(scope="module")
@@ -237,24 +215,9 @@ def registered(monkeypatch, specs, tmp_path):
         monkeypatch.setitem(MODELS, name, spec)
 
 
-PLANE_FILE = '''
-import pamid
-
-class Plane(pamid.ForceModel):
-    c0: float = 0.0
-    c1: float = 1.0
-    c2: float = -10.0
-    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%"}
-    inputs = ("pressure_kPa", "contraction_pct")
-
-    def __call__(self, pressure_kPa, contraction_pct):
-        return self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
-'''
-
-
 def test_cli_json_table_and_out(trial_csv, registered, tmp_path, capsys):
     law = tmp_path / "law.py"
-    law.write_text(PLANE_FILE)
+    law.write_text(PLANE_SOURCE)
     assert main(["compare", str(trial_csv), "--models", f"interaction,{law}:Plane",
                  "--json"]) == 0
     out, err = capsys.readouterr()

@@ -212,15 +212,7 @@ def test_the_terms_a_model_already_contains_are_found_from_the_model_not_its_nam
                                 (p, 2.5 * k), frame, ["pressure_kPa", "contraction_mm"], ranges)
     assert cullinan == {"pressure_kPa": (1,), "contraction_mm": (1, 2)}
 
-    class Plane(pamid.ForceModel):
-        c0: float = 0.0
-        c1: float = 1.0
-        c2: float = -10.0
-        units = {"c0": "N", "c1": "N/kPa", "c2": "N/%"}
-        inputs = ("pressure_kPa", "contraction_pct")
-
-        def __call__(self, pressure_kPa, contraction_pct):
-            return self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
+    from force_models import Plane
 
     plane = degrees_in_model(get_model(Plane), np.array([0.0, 1.0, -10.0]), (p, k), frame,
                              ["pressure_kPa", "contraction_pct"], ranges)

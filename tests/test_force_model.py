@@ -16,41 +16,14 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 import pytest
+from force_models import QUADRATIC_SOURCE, Quadratic
 
 import pamid
 from pamid._fit._spec import CULLINAN, SAROSI, ModelDefinitionError, get_model, spec_from_model
 from pamid._fit._start import linear_constants
 
-QUADRATIC_FILE = '''
-import pamid
-
-class Quadratic(pamid.ForceModel):
-    c0: float = 0.0
-    c1: float = 1.0
-    c2: float = -10.0
-    c3: float = 0.0
-    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%", "c3": "N/(kPa*%)"}
-    inputs = ("pressure_kPa", "contraction_pct")
-
-    def __call__(self, pressure_kPa, contraction_pct):
-        return (self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
-                + self.c3 * pressure_kPa * contraction_pct)
-'''
 TRUE = {"c0": 5.0, "c1": 1.2, "c2": -12.0, "c3": 0.01}
 NOISE_N = 2.0
-
-
-class Quadratic(pamid.ForceModel):
-    c0: float = 0.0
-    c1: float = 1.0
-    c2: float = -10.0
-    c3: float = 0.0
-    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%", "c3": "N/(kPa*%)"}
-    inputs = ("pressure_kPa", "contraction_pct")
-
-    def __call__(self, pressure_kPa, contraction_pct):
-        return (self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
-                + self.c3 * pressure_kPa * contraction_pct)
 
 
 class Decaying(pamid.ForceModel):
@@ -90,7 +63,7 @@ def _load(frame, tmp_path):
 @pytest.fixture(scope="module")
 def quadratic_csv(tmp_path_factory):
     folder = tmp_path_factory.mktemp("quadratic")
-    (folder / "models.py").write_text(QUADRATIC_FILE)
+    (folder / "models.py").write_text(QUADRATIC_SOURCE)
     frame = _sweeps(Quadratic(**TRUE), 2, np.random.default_rng(7))
     frame.to_csv(folder / "bench.csv", index=False)
     return folder
