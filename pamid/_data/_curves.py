@@ -618,3 +618,4 @@ def _repeats(trials, muscles, moving_block, level_raw, iso, pin, kin, cycle, has
         repeat_block[b] = len(same)
         earlier.append(b)
     return trials.per_block(repeat_block)
+

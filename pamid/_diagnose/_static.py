@@ -44,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
+from .._data._holdout import holdout_units
 from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
@@ -468,18 +469,13 @@ class StaticProblem:
 
 
 def _diagnosis_folds(curve: np.ndarray, trial: np.ndarray, n_folds: int) -> np.ndarray:
-    """Whole trials are held out, round robin in ``min(n_folds, trials)`` folds, where the
-    muscle has at least ``MIN_TRIALS_FOR_TRIAL_CV`` of them (as ``pamid compare`` does:
-    :func:`pamid._fit._compare.fold_plan`), so that a leftover shared by a trial's curves —
-    a transient, a softening, a trial's own zero — is not learned from the trial itself;
-    else whole curves (:func:`_folds`)."""
-    from .._fit._compare_options import MIN_TRIALS_FOR_TRIAL_CV
-
-    unit = np.unique(trial, return_inverse=True)[1]
-    n_trials = int(unit.max()) + 1 if len(unit) else 0
-    if n_trials >= MIN_TRIALS_FOR_TRIAL_CV:
-        return _folds(unit, min(n_folds, n_trials))
-    return _folds(curve, n_folds)
+    """The file's one hold-out rule (:func:`pamid._data._holdout.holdout_units`: whole
+    trials where a muscle has enough, else whole curves), dealt round robin into
+    ``min(n_folds, units)`` folds of trials, or :func:`_folds` of curves."""
+    unit, kind = holdout_units(curve, trial)
+    if kind == "trials":
+        return _folds(unit, min(n_folds, int(unit.max()) + 1))
+    return _folds(unit, n_folds)
 
 
 def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:

@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from .._data._bench import BenchData
-from .._diagnose._static import _folds
+from .._data._holdout import holdout_units
 from .._errors import BenchDataError
 from ._api import FitResult, bench_to_fit_data, fit_least_squares
 from ._batch import FitData, map_lanes, pack_rows
@@ -81,19 +81,14 @@ def fold_plan(bench: BenchData, n_folds: int = N_FOLDS) -> FoldPlan:
     fold_of_row = np.full(len(codes), -1, dtype=np.int64)
     k_per, kinds, units_per = np.zeros(m, np.int64), [], np.zeros(m, np.int64)
     for i, rows in enumerate(_rows_per_muscle(codes, m)):
-        trial = curves.trial[rows]
-        n_trials = len(np.unique(trial))
-        if n_trials >= MIN_TRIALS_FOR_TRIAL_CV:
-            unit, kind = np.unique(trial, return_inverse=True)[1], "trials"
-        else:
-            unit, kind = np.unique(curves.curve[rows], return_inverse=True)[1], "curves"
+        unit, kind = holdout_units(curves.curve[rows], curves.trial[rows])
         n_units = int(unit.max(initial=-1)) + 1
         units_per[i] = n_units
         if n_units < 2:
             kinds.append(None)
             continue
         k = min(n_folds, n_units)
-        fold_of_row[rows] = _folds(unit, k)  # units round robin: unit % k
+        fold_of_row[rows] = unit % k  # units round robin
         k_per[i] = k
         kinds.append(kind)
     packed = pack_rows(codes, (fold_of_row.astype(np.float64),), np.zeros(len(codes)),

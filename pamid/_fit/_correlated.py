@@ -353,9 +353,10 @@ def trial_groups(bench) -> np.ndarray:
 def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
             level: float = 0.95) -> dict:
     """What :func:`pamid.fit_least_squares` adds to its result: the residual's lag-1
-    autocorrelation (always; within curves where ``data`` carries them), the "cluster" interval (CR3 by curve, t on
-    G − 1) and the "hac" interval (Newey–West within ``trials``, default within curves)
-    where asked for, and per muscle a note on which interval holds and why."""
+    autocorrelation (always; within curves where ``data`` carries them), the "cluster"
+    interval (CR3 by curve, t on G − 1) and the "hac" interval (Newey–West within
+    ``trials``, default within curves) where asked for, and per muscle a note on which
+    interval holds and why."""
     curves = np.asarray(data.curve)
     wanted = [k for k in ("cluster", "hac") if k in intervals]
     if wanted:
