@@ -395,13 +395,14 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
         elif bw is not None:
             notes.append(head + f"ci95_hac (Newey–West, bandwidth {bw[i]:.0f} rows) allows "
                          "for it but ran 85–95 % in pamid's coverage study; ask for the "
-                         "cluster interval (intervals cluster) where the data have curves")
+                         "cluster interval (--intervals wald,profile,cluster) where the data "
+                         "have curves")
         elif g is not None:
             notes.append(head + f"the cluster interval needs at least two curves (this "
                          f"muscle has {int(g[i])}), so none that holds can be given")
         else:
-            notes.append(head + "ask for the cluster interval (intervals cluster), which "
-                         "holds under correlated noise")
+            notes.append(head + "ask for the cluster interval (--intervals wald,profile,cluster), "
+                         "which holds under correlated noise")
     out["interval_notes"] = tuple(notes)
     groups_of = {"cluster": "curve", "hac": "curve" if trials is None else "trial"}
     out["interval_groups"] = {k: groups_of[k] for k in wanted}
