@@ -44,7 +44,7 @@ MAKE = r"""
 import sys
 import jax
 import pamid
-from pamid._data._virtual_effects import (InjectedCompliance, InjectedHysteresis,
+from pamid._effects._inject import (InjectedCompliance, InjectedHysteresis,
                                           InjectedTemperature)
 rows, path = int(sys.argv[1]), sys.argv[2]
 points = max(2, rows // 100)

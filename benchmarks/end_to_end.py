@@ -21,8 +21,8 @@ alike; medians over ``--rounds`` rounds are reported, with the load average befo
 pamid runs from a snapshot of its source tree (copied to a temporary folder, byte-compiled as
 an installed package is, and put first on ``PYTHONPATH``) with its own compilation cache
 there: the programs the command keeps on disk are keyed by a hash of pamid's source, so
-edits made elsewhere during the run would otherwise make it trace and compile again. One warm-up call of each pamid command fills that cache
-first (its time is reported as "cold cache").
+edits made elsewhere during the run would otherwise make it trace and compile again. One
+warm-up call of each pamid command fills that cache first (its time is reported as "cold cache").
 """
 
 from __future__ import annotations

@@ -38,7 +38,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._data import _virtual_joint as vj  # noqa: E402
 from pamid._io import json_ready, save_figure_atomic, write_text_atomic  # noqa: E402
 from pamid._models import _cullinan_presets as cp  # noqa: E402
 from pamid._models._energy import trajectory_energy_J  # noqa: E402
@@ -50,6 +49,7 @@ from pamid._models._joint import (  # noqa: E402
     pressures_for_torque_stiffness_kPa,
 )
 from pamid._models._volume import PamVolume, sleeve_pam_volume, traditional_pam_volume  # noqa: E402
+from pamid._virtual import _joint as vj  # noqa: E402
 
 NAME = "cullinan_joint"
 SEED = 20190520
@@ -81,7 +81,7 @@ def claim(rows, key, paper, model, holds, note=""):
 
 def presets_section(out: Path):
     t0 = time.time()
-    result, frames = cp.fit_cullinan_presets()
+    result, frames = pamid.fit_cullinan_presets()
     stored = [cp.TRADITIONAL_FIT, cp.SLEEVE_FIT]
     print("== Presets: eq. 3 fitted to the virtual static bench of the physical muscles ==")
     print(f"   (fit {time.time() - t0:.1f} s; n = {result.n.tolist()}, load-cell noise 2 N)")
@@ -581,7 +581,7 @@ def element_section(out: Path):
                                        cp.traditional_volume(), traj, 20.0, 60.0).total_J)
     for d in (20.0, 25.0, 28.0, 30.0, 32.0, 35.0):
         # Same keys as the presets' fit, so that d = 30 mm gives the presets exactly.
-        result, _ = cp.fit_cullinan_presets(
+        result, _ = pamid.fit_cullinan_presets(
             muscles={"traditional": cp.traditional_braided_pam(), "sleeve": cp.braided_pam(d)})
         sleeve = result.params(1)
         beta_a = cp.config_a_beta_range_rad(traditional, sleeve)

@@ -1,8 +1,9 @@
 """pamid: system identification for pneumatic artificial muscles, built on JAX.
 
-The public API is flat; the modules behind it are private and grouped by concept:
-``_models`` (force laws), ``_data`` (bench files and the virtual bench), ``_fit`` (batched
-least squares and intervals), ``_sim`` and ``_dynamics`` (simulators, decays), ``_sampling``
+The public API is flat; the modules behind it are private and grouped by concept
+(docs/architecture.md): ``_data`` (reading files), ``_virtual`` (the virtual bench),
+``_effects`` (effects a model may lack), ``_models`` (force laws), ``_fit`` (batched least
+squares and intervals), ``_sim`` (simulators), ``_decays`` (free decays), ``_sampling``
 (MCMC), ``_diagnose`` (closing the loop), ``_control`` (positioning control). float64 is
 switched on at import, because fitting needs it.
 """
@@ -44,48 +45,48 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "CensoredRowsWarning": ("._data._bench", "CensoredRowsWarning"),
     "MissingValuesWarning": ("._data._bench", "MissingValuesWarning"),
     "load_bench": ("._data._bench", "load_bench"),
-    "SarosiProtocol": ("._data._virtual_bench", "SarosiProtocol"),
-    "simulate_sarosi_bench": ("._data._virtual_bench", "simulate_sarosi_bench"),
-    "DecayProtocol": ("._data._virtual_decay", "DecayProtocol"),
-    "simulate_decays": ("._data._virtual_decay", "simulate_decays"),
-    "InjectedCompliance": ("._data._virtual_effects", "InjectedCompliance"),
-    "InjectedCovariate": ("._data._virtual_effects", "InjectedCovariate"),
-    "InjectedDrift": ("._data._virtual_effects", "InjectedDrift"),
-    "InjectedHysteresis": ("._data._virtual_effects", "InjectedHysteresis"),
-    "InjectedTemperature": ("._data._virtual_effects", "InjectedTemperature"),
-    "InjectedViscousDamping": ("._data._virtual_effects", "InjectedViscousDamping"),
-    "IsometricProtocol": ("._data._virtual_isometric", "IsometricProtocol"),
-    "simulate_isometric_bench": ("._data._virtual_isometric", "simulate_isometric_bench"),
-    "virtual_lab_file": ("._data._virtual_isometric", "virtual_lab_file"),
-    "write_bench_csv": ("._data._virtual_isometric", "write_bench_csv"),
-    "DeflectionProtocol": ("._data._virtual_joint", "DeflectionProtocol"),
-    "JointSweepProtocol": ("._data._virtual_joint", "JointSweepProtocol"),
-    "deflection_test_stiffness": ("._data._virtual_joint", "deflection_test_stiffness"),
-    "simulate_deflection_test": ("._data._virtual_joint", "simulate_deflection_test"),
-    "simulate_joint_sweep": ("._data._virtual_joint", "simulate_joint_sweep"),
+    "SarosiProtocol": ("._virtual._sweeps", "SarosiProtocol"),
+    "simulate_sarosi_bench": ("._virtual._sweeps", "simulate_sarosi_bench"),
+    "DecayProtocol": ("._virtual._decay", "DecayProtocol"),
+    "simulate_decays": ("._virtual._decay", "simulate_decays"),
+    "InjectedCompliance": ("._effects._inject", "InjectedCompliance"),
+    "InjectedCovariate": ("._effects._inject", "InjectedCovariate"),
+    "InjectedDrift": ("._effects._inject", "InjectedDrift"),
+    "InjectedHysteresis": ("._effects._inject", "InjectedHysteresis"),
+    "InjectedTemperature": ("._effects._inject", "InjectedTemperature"),
+    "InjectedViscousDamping": ("._effects._inject", "InjectedViscousDamping"),
+    "IsometricProtocol": ("._virtual._isometric", "IsometricProtocol"),
+    "simulate_isometric_bench": ("._virtual._isometric", "simulate_isometric_bench"),
+    "virtual_lab_file": ("._virtual._isometric", "virtual_lab_file"),
+    "write_bench_csv": ("._virtual._isometric", "write_bench_csv"),
+    "DeflectionProtocol": ("._virtual._joint", "DeflectionProtocol"),
+    "JointSweepProtocol": ("._virtual._joint", "JointSweepProtocol"),
+    "deflection_test_stiffness": ("._virtual._joint", "deflection_test_stiffness"),
+    "simulate_deflection_test": ("._virtual._joint", "simulate_deflection_test"),
+    "simulate_joint_sweep": ("._virtual._joint", "simulate_joint_sweep"),
     "ForceModel": ("._models._protocol", "ForceModel"),
     "ModelDefinitionError": ("._fit._spec", "ModelDefinitionError"),
-    "Diagnosis": ("._diagnose._api", "Diagnosis"),
+    "Diagnosis": ("._diagnose._result", "Diagnosis"),
     "diagnose": ("._diagnose._api", "diagnose"),
-    "DECAY_EFFECTS": ("._dynamics._coulomb", "DECAY_EFFECTS"),
-    "DecayModelFit": ("._dynamics._coulomb", "DecayModelFit"),
-    "DecayTrialModelFit": ("._dynamics._coulomb", "DecayTrialModelFit"),
-    "coulomb_response": ("._dynamics._coulomb", "coulomb_response"),
-    "fit_decay_models": ("._dynamics._coulomb", "fit_decay_models"),
-    "DecayReport": ("._dynamics._decay", "DecayReport"),
-    "DecrementEstimate": ("._dynamics._decay", "DecrementEstimate"),
-    "Extrema": ("._dynamics._decay", "Extrema"),
-    "TrajectoryFit": ("._dynamics._decay", "TrajectoryFit"),
-    "analyze_decays": ("._dynamics._decay", "analyze_decays"),
-    "decrement_estimate": ("._dynamics._decay", "decrement_estimate"),
-    "find_extrema": ("._dynamics._decay", "find_extrema"),
-    "fit_decay_trajectories": ("._dynamics._decay", "fit_decay_trajectories"),
-    "log_decrement_to_zeta": ("._dynamics._decay", "log_decrement_to_zeta"),
-    "moment_of_inertia_eq12": ("._dynamics._decay", "moment_of_inertia_eq12"),
-    "DecayData": ("._dynamics._decay_data", "DecayData"),
-    "load_decay": ("._dynamics._decay_data", "load_decay"),
-    "JointDecayFit": ("._dynamics._joint_fit", "JointDecayFit"),
-    "fit_joint_decays": ("._dynamics._joint_fit", "fit_joint_decays"),
+    "DECAY_EFFECTS": ("._decays._coulomb", "DECAY_EFFECTS"),
+    "DecayModelFit": ("._decays._coulomb", "DecayModelFit"),
+    "DecayTrialModelFit": ("._decays._coulomb", "DecayTrialModelFit"),
+    "coulomb_response": ("._decays._coulomb", "coulomb_response"),
+    "fit_decay_models": ("._decays._coulomb", "fit_decay_models"),
+    "DecayReport": ("._decays._analysis", "DecayReport"),
+    "DecrementEstimate": ("._decays._analysis", "DecrementEstimate"),
+    "Extrema": ("._decays._analysis", "Extrema"),
+    "TrajectoryFit": ("._decays._analysis", "TrajectoryFit"),
+    "analyze_decays": ("._decays._analysis", "analyze_decays"),
+    "decrement_estimate": ("._decays._analysis", "decrement_estimate"),
+    "find_extrema": ("._decays._analysis", "find_extrema"),
+    "fit_decay_trajectories": ("._decays._analysis", "fit_decay_trajectories"),
+    "log_decrement_to_zeta": ("._decays._analysis", "log_decrement_to_zeta"),
+    "moment_of_inertia_eq12": ("._decays._analysis", "moment_of_inertia_eq12"),
+    "DecayData": ("._data._decay_file", "DecayData"),
+    "load_decay": ("._data._decay_file", "load_decay"),
+    "JointDecayFit": ("._decays._joint_fit", "JointDecayFit"),
+    "fit_joint_decays": ("._decays._joint_fit", "fit_joint_decays"),
     "BenchDataError": ("._errors", "BenchDataError"),
     "UntrustedResultError": ("._errors", "UntrustedResultError"),
     "FitResult": ("._fit._api", "FitResult"),
@@ -100,12 +101,12 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "cullinan_spring_rate": ("._models._cullinan", "cullinan_spring_rate"),
     "end_fitting_force": ("._models._cullinan", "end_fitting_force"),
     "BraidedPam": ("._models._cullinan_presets", "BraidedPam"),
-    "StaticBenchProtocol": ("._models._cullinan_presets", "StaticBenchProtocol"),
+    "StaticBenchProtocol": ("._virtual._braided", "StaticBenchProtocol"),
     "braided_pam": ("._models._cullinan_presets", "braided_pam"),
     "braided_pam_force_N": ("._models._cullinan_presets", "braided_pam_force_N"),
     "config_a_beta_range_rad": ("._models._cullinan_presets", "config_a_beta_range_rad"),
-    "fit_cullinan_presets": ("._models._cullinan_presets", "fit_cullinan_presets"),
-    "simulate_braided_pam_bench": ("._models._cullinan_presets", "simulate_braided_pam_bench"),
+    "fit_cullinan_presets": ("._virtual._braided", "fit_cullinan_presets"),
+    "simulate_braided_pam_bench": ("._virtual._braided", "simulate_braided_pam_bench"),
     "sleeve_joint_A": ("._models._cullinan_presets", "sleeve_joint_A"),
     "sleeve_joint_B": ("._models._cullinan_presets", "sleeve_joint_B"),
     "sleeve_pam": ("._models._cullinan_presets", "sleeve_pam"),
@@ -155,10 +156,10 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "traditional_pam_volume": ("._models._volume", "traditional_pam_volume"),
     "pam_volume_mm3": ("._models._volume", "volume_mm3"),
     "load_inference_data": ("._sampling._arviz", "load_inference_data"),
-    "DecayPosterior": ("._sampling._decay_posterior", "DecayPosterior"),
-    "DecayPredictive": ("._sampling._decay_posterior", "DecayPredictive"),
-    "decay_prior": ("._sampling._decay_posterior", "decay_prior"),
-    "fit_decay_mcmc": ("._sampling._decay_posterior", "fit_decay_mcmc"),
+    "DecayPosterior": ("._decays._posterior", "DecayPosterior"),
+    "DecayPredictive": ("._decays._posterior", "DecayPredictive"),
+    "decay_prior": ("._decays._posterior", "decay_prior"),
+    "fit_decay_mcmc": ("._decays._posterior", "fit_decay_mcmc"),
     "McmcBudgetWarning": ("._sampling._mcmc", "McmcBudgetWarning"),
     "McmcResult": ("._sampling._mcmc", "McmcResult"),
     "fit_mcmc": ("._sampling._mcmc", "fit_mcmc"),
@@ -226,46 +227,37 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._data._bench import CensoredRowsWarning as CensoredRowsWarning
     from ._data._bench import MissingValuesWarning as MissingValuesWarning
     from ._data._bench import load_bench as load_bench
-    from ._data._virtual_bench import SarosiProtocol as SarosiProtocol
-    from ._data._virtual_bench import simulate_sarosi_bench as simulate_sarosi_bench
-    from ._data._virtual_decay import DecayProtocol as DecayProtocol
-    from ._data._virtual_decay import simulate_decays as simulate_decays
-    from ._data._virtual_effects import InjectedCompliance as InjectedCompliance
-    from ._data._virtual_effects import InjectedCovariate as InjectedCovariate
-    from ._data._virtual_effects import InjectedDrift as InjectedDrift
-    from ._data._virtual_effects import InjectedHysteresis as InjectedHysteresis
-    from ._data._virtual_effects import InjectedTemperature as InjectedTemperature
-    from ._data._virtual_effects import InjectedViscousDamping as InjectedViscousDamping
-    from ._data._virtual_isometric import IsometricProtocol as IsometricProtocol
-    from ._data._virtual_isometric import simulate_isometric_bench as simulate_isometric_bench
-    from ._data._virtual_isometric import virtual_lab_file as virtual_lab_file
-    from ._data._virtual_isometric import write_bench_csv as write_bench_csv
-    from ._data._virtual_joint import DeflectionProtocol as DeflectionProtocol
-    from ._data._virtual_joint import JointSweepProtocol as JointSweepProtocol
-    from ._data._virtual_joint import deflection_test_stiffness as deflection_test_stiffness
-    from ._data._virtual_joint import simulate_deflection_test as simulate_deflection_test
-    from ._data._virtual_joint import simulate_joint_sweep as simulate_joint_sweep
-    from ._diagnose._api import Diagnosis as Diagnosis
+    from ._data._decay_file import DecayData as DecayData
+    from ._data._decay_file import load_decay as load_decay
+    from ._decays._analysis import DecayReport as DecayReport
+    from ._decays._analysis import DecrementEstimate as DecrementEstimate
+    from ._decays._analysis import Extrema as Extrema
+    from ._decays._analysis import TrajectoryFit as TrajectoryFit
+    from ._decays._analysis import analyze_decays as analyze_decays
+    from ._decays._analysis import decrement_estimate as decrement_estimate
+    from ._decays._analysis import find_extrema as find_extrema
+    from ._decays._analysis import fit_decay_trajectories as fit_decay_trajectories
+    from ._decays._analysis import log_decrement_to_zeta as log_decrement_to_zeta
+    from ._decays._analysis import moment_of_inertia_eq12 as moment_of_inertia_eq12
+    from ._decays._coulomb import DECAY_EFFECTS as DECAY_EFFECTS
+    from ._decays._coulomb import DecayModelFit as DecayModelFit
+    from ._decays._coulomb import DecayTrialModelFit as DecayTrialModelFit
+    from ._decays._coulomb import coulomb_response as coulomb_response
+    from ._decays._coulomb import fit_decay_models as fit_decay_models
+    from ._decays._joint_fit import JointDecayFit as JointDecayFit
+    from ._decays._joint_fit import fit_joint_decays as fit_joint_decays
+    from ._decays._posterior import DecayPosterior as DecayPosterior
+    from ._decays._posterior import DecayPredictive as DecayPredictive
+    from ._decays._posterior import decay_prior as decay_prior
+    from ._decays._posterior import fit_decay_mcmc as fit_decay_mcmc
     from ._diagnose._api import diagnose as diagnose
-    from ._dynamics._coulomb import DECAY_EFFECTS as DECAY_EFFECTS
-    from ._dynamics._coulomb import DecayModelFit as DecayModelFit
-    from ._dynamics._coulomb import DecayTrialModelFit as DecayTrialModelFit
-    from ._dynamics._coulomb import coulomb_response as coulomb_response
-    from ._dynamics._coulomb import fit_decay_models as fit_decay_models
-    from ._dynamics._decay import DecayReport as DecayReport
-    from ._dynamics._decay import DecrementEstimate as DecrementEstimate
-    from ._dynamics._decay import Extrema as Extrema
-    from ._dynamics._decay import TrajectoryFit as TrajectoryFit
-    from ._dynamics._decay import analyze_decays as analyze_decays
-    from ._dynamics._decay import decrement_estimate as decrement_estimate
-    from ._dynamics._decay import find_extrema as find_extrema
-    from ._dynamics._decay import fit_decay_trajectories as fit_decay_trajectories
-    from ._dynamics._decay import log_decrement_to_zeta as log_decrement_to_zeta
-    from ._dynamics._decay import moment_of_inertia_eq12 as moment_of_inertia_eq12
-    from ._dynamics._decay_data import DecayData as DecayData
-    from ._dynamics._decay_data import load_decay as load_decay
-    from ._dynamics._joint_fit import JointDecayFit as JointDecayFit
-    from ._dynamics._joint_fit import fit_joint_decays as fit_joint_decays
+    from ._diagnose._result import Diagnosis as Diagnosis
+    from ._effects._inject import InjectedCompliance as InjectedCompliance
+    from ._effects._inject import InjectedCovariate as InjectedCovariate
+    from ._effects._inject import InjectedDrift as InjectedDrift
+    from ._effects._inject import InjectedHysteresis as InjectedHysteresis
+    from ._effects._inject import InjectedTemperature as InjectedTemperature
+    from ._effects._inject import InjectedViscousDamping as InjectedViscousDamping
     from ._errors import BenchDataError as BenchDataError
     from ._errors import UntrustedResultError as UntrustedResultError
     from ._fit._api import FitResult as FitResult
@@ -281,12 +273,9 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._models._cullinan import cullinan_spring_rate as cullinan_spring_rate
     from ._models._cullinan import end_fitting_force as end_fitting_force
     from ._models._cullinan_presets import BraidedPam as BraidedPam
-    from ._models._cullinan_presets import StaticBenchProtocol as StaticBenchProtocol
     from ._models._cullinan_presets import braided_pam as braided_pam
     from ._models._cullinan_presets import braided_pam_force_N as braided_pam_force_N
     from ._models._cullinan_presets import config_a_beta_range_rad as config_a_beta_range_rad
-    from ._models._cullinan_presets import fit_cullinan_presets as fit_cullinan_presets
-    from ._models._cullinan_presets import simulate_braided_pam_bench as simulate_braided_pam_bench
     from ._models._cullinan_presets import sleeve_joint_A as sleeve_joint_A
     from ._models._cullinan_presets import sleeve_joint_B as sleeve_joint_B
     from ._models._cullinan_presets import sleeve_pam as sleeve_pam
@@ -341,10 +330,6 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._models._volume import traditional_pam_volume as traditional_pam_volume
     from ._models._volume import volume_mm3 as pam_volume_mm3
     from ._sampling._arviz import load_inference_data as load_inference_data
-    from ._sampling._decay_posterior import DecayPosterior as DecayPosterior
-    from ._sampling._decay_posterior import DecayPredictive as DecayPredictive
-    from ._sampling._decay_posterior import decay_prior as decay_prior
-    from ._sampling._decay_posterior import fit_decay_mcmc as fit_decay_mcmc
     from ._sampling._mcmc import McmcBudgetWarning as McmcBudgetWarning
     from ._sampling._mcmc import McmcResult as McmcResult
     from ._sampling._mcmc import fit_mcmc as fit_mcmc
@@ -366,5 +351,21 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from ._sim._oscillator import OscillatorRun as OscillatorRun
     from ._sim._oscillator import oscillator_response as oscillator_response
     from ._sim._oscillator import simulate_oscillator as simulate_oscillator
+    from ._virtual._braided import StaticBenchProtocol as StaticBenchProtocol
+    from ._virtual._braided import fit_cullinan_presets as fit_cullinan_presets
+    from ._virtual._braided import simulate_braided_pam_bench as simulate_braided_pam_bench
+    from ._virtual._decay import DecayProtocol as DecayProtocol
+    from ._virtual._decay import simulate_decays as simulate_decays
+    from ._virtual._isometric import IsometricProtocol as IsometricProtocol
+    from ._virtual._isometric import simulate_isometric_bench as simulate_isometric_bench
+    from ._virtual._isometric import virtual_lab_file as virtual_lab_file
+    from ._virtual._isometric import write_bench_csv as write_bench_csv
+    from ._virtual._joint import DeflectionProtocol as DeflectionProtocol
+    from ._virtual._joint import JointSweepProtocol as JointSweepProtocol
+    from ._virtual._joint import deflection_test_stiffness as deflection_test_stiffness
+    from ._virtual._joint import simulate_deflection_test as simulate_deflection_test
+    from ._virtual._joint import simulate_joint_sweep as simulate_joint_sweep
+    from ._virtual._sweeps import SarosiProtocol as SarosiProtocol
+    from ._virtual._sweeps import simulate_sarosi_bench as simulate_sarosi_bench
 
 __version__ = importlib.metadata.version("pamid")

@@ -24,6 +24,9 @@ import time
 import warnings
 from pathlib import Path
 
+from ._commands._common import stage
+from ._io import safe_file_name
+
 EXIT_BAD_INPUT = 2
 #: Arguments of the commands that name input files (never written; see pamid._io).
 _INPUT_ARGUMENTS = ("data", "decay", "model_json", "fit")
@@ -45,11 +48,6 @@ def _enable_compilation_cache() -> None:
     from ._fit import _export_cache
 
     _export_cache.enable(Path(cache) / "exported")
-
-
-def _stage(message: str, quiet: bool) -> None:
-    if not quiet:
-        print(f"[pamid] {message}", file=sys.stderr, flush=True)
 
 
 def _format_table(result, published=None) -> str:
@@ -114,7 +112,7 @@ def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
     written = []
     for i, muscle in enumerate(bench.muscles[:max_plots]):
         frame = bench.for_muscle(muscle)  # a few muscles only
-        name = _safe(muscle) if bench.has_muscle_column else "muscle"
+        name = safe_file_name(muscle) if bench.has_muscle_column else "muscle"
         label = muscle if bench.has_muscle_column else Path(bench.path).name
         title = f"{result.spec.source} fit — {label}"
         curves = find_curves(frame, contraction_column=result.spec.contraction_column)
@@ -128,10 +126,6 @@ def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
                                   f"Fit RMSE across {result.n_muscles} muscles")
         written.append("rmse_histogram.png")
     return written
-
-
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name))
 
 
 def _cmd_fit(args) -> int:
@@ -158,7 +152,7 @@ def _cmd_fit(args) -> int:
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
     if args.bootstrap and "bootstrap" not in intervals:
         intervals += ("bootstrap",)
-    _stage(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
+    stage(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
            quiet)
     if args.method == "mcmc":
         from ._commands.mcmc import run_mcmc_fit
@@ -167,7 +161,7 @@ def _cmd_fit(args) -> int:
         if args.json:
             print(json.dumps(payload))
         return code
-    _stage(f"fitting ({args.solver}; intervals: {', '.join(intervals)})", quiet)
+    stage(f"fitting ({args.solver}; intervals: {', '.join(intervals)})", quiet)
     result = fit_least_squares(
         bench,
         args.model,
@@ -181,7 +175,7 @@ def _cmd_fit(args) -> int:
                "seconds": round(time.perf_counter() - t0, 3)}  # after result.to_dict()'s keys
     if args.out:
         out = Path(args.out)
-        _stage(f"writing plots to {final_place(out)}", quiet)
+        stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _write_plots(bench, result, out, args.max_plots)
         write_text_atomic(out / "fit.json",
                           json.dumps({**result.to_dict(), **payload}, indent=2) + "\n")
@@ -199,13 +193,13 @@ def _cmd_demo(args) -> int:
     import jax
 
     from ._data._bench import load_bench
-    from ._data._default import default_bench_path, default_protocol
     from ._fit._api import fit_least_squares
     from ._fit._batch import pack
     from ._io import final_place, write_text_atomic
     from ._models._hysteresis import hysteresis_damping
     from ._models._sarosi import TABLE_3_1, TABLE_3_1_L0_MM, Sarosi, table_3_1_fit_json
     from ._units import KPA_PER_BAR
+    from ._virtual._default import default_bench_path, default_protocol
 
     out = Path(args.out)
     path = default_bench_path()

@@ -220,6 +220,11 @@ def refuse_overwrite_input(
             )
 
 
+def safe_file_name(name) -> str:
+    """``name`` as a file name: letters, digits, '-', '_' and '.' kept, anything else '_'."""
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
+
+
 def json_ready(value):
     """``value`` with NumPy scalars and arrays made plain Python, recursively, every
     non-finite float made None (JSON has no NaN), and dictionary keys made strings (as JSON

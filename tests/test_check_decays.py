@@ -1,5 +1,5 @@
 """``pamid check-decays`` end to end on virtual decays, and the encoder-resolution gate of
-the friction verdict (pamid._dynamics._decay)."""
+the friction verdict (pamid._decays._analysis)."""
 
 import argparse
 import json

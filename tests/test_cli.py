@@ -130,7 +130,7 @@ def test_demo_writes_table_and_plots(tmp_path, env):
 
 
 def test_bundled_default_data_is_what_the_virtual_bench_makes():
-    from pamid._data._default import default_bench_path, simulate_default_bench
+    from pamid._virtual._default import default_bench_path, simulate_default_bench
 
     bundled = pd.read_csv(default_bench_path())
     fresh = simulate_default_bench()

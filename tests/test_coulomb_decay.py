@@ -11,19 +11,19 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pamid._data._virtual_decay import DecayProtocol, coulomb_decay, simulate_decays
-from pamid._dynamics._coulomb import (
+from pamid._decays._analysis import (
+    find_extrema,
+    fit_decay_trajectories,
+    pooled_decrement_estimate,
+)
+from pamid._decays._coulomb import (
     FIT_NAMES,
     coulomb_response,
     fit_decay_models,
     fold_labels,
 )
-from pamid._dynamics._decay import (
-    find_extrema,
-    fit_decay_trajectories,
-    pooled_decrement_estimate,
-)
 from pamid._sim._oscillator import DampedOscillator, oscillator_response
+from pamid._virtual._decay import DecayProtocol, coulomb_decay, simulate_decays
 
 J = 0.46  # kg·m², Cullinan's arm with two 1.2 kg weights
 K = 88.0  # N·m/rad, Cullinan Fig. 7

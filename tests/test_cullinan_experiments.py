@@ -20,6 +20,7 @@ from pamid._models._joint import (
     max_isobaric_stiffness,
 )
 from pamid._units import ATMOSPHERE_KPA
+from pamid._virtual._braided import fit_cullinan_presets, simulate_braided_pam_bench
 
 P_MAX = 414.0
 PRESSURES = np.asarray(cp.TEST_PRESSURES_KPA)[:, None]
@@ -28,7 +29,7 @@ BETA = np.linspace(-0.6, 0.6, 49)[None, :]
 
 @pytest.fixture(scope="module")
 def refit():
-    return cp.fit_cullinan_presets()
+    return fit_cullinan_presets()
 
 
 def test_presets_are_the_fit_of_the_virtual_bench(refit):
@@ -48,9 +49,9 @@ def test_presets_are_the_fit_of_the_virtual_bench(refit):
 
 def test_static_bench_is_reproducible_with_a_key():
     muscle = cp.traditional_braided_pam()
-    a = cp.simulate_braided_pam_bench(jax.random.key(1), muscle)
-    b = cp.simulate_braided_pam_bench(jax.random.key(1), muscle)
-    c = cp.simulate_braided_pam_bench(jax.random.key(2), muscle)
+    a = simulate_braided_pam_bench(jax.random.key(1), muscle)
+    b = simulate_braided_pam_bench(jax.random.key(1), muscle)
+    c = simulate_braided_pam_bench(jax.random.key(2), muscle)
     pd.testing.assert_frame_equal(a, b)
     assert not np.allclose(a["force_N"], c["force_N"])
     np.testing.assert_allclose(a["length_mm"] + a["contraction_mm"], 190.0)

@@ -16,16 +16,16 @@ import scipy.signal
 
 import pamid
 from pamid._commands.dynamics import register
-from pamid._data._virtual_decay import DecayProtocol, coulomb_decay, simulate_decays
-from pamid._dynamics._decay import (
+from pamid._data._decay_file import load_decay
+from pamid._decays._analysis import (
     analyze_decays,
     decrement_estimate,
     find_extrema,
     log_decrement_to_zeta,
     moment_of_inertia_eq12,
 )
-from pamid._dynamics._decay_data import load_decay
 from pamid._sim._oscillator import DampedOscillator, oscillator_response
+from pamid._virtual._decay import DecayProtocol, coulomb_decay, simulate_decays
 
 J = 0.46  # kg·m², Cullinan's arm with two 1.2 kg weights
 K = 88.0  # N·m/rad, Cullinan Fig. 7

@@ -1,4 +1,4 @@
-"""Bayesian fit of free decays and its posterior predictive (pamid._sampling._decay_posterior)."""
+"""Bayesian fit of free decays and its posterior predictive (pamid._decays._posterior)."""
 
 import math
 import warnings
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import pamid
-from pamid._sampling._decay_posterior import (
+from pamid._decays._posterior import (
     DECAY_NAMES,
     DECAY_SPEC,
     decay_prior,

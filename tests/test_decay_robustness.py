@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from pamid._cli import main
-from pamid._dynamics._decay import analyze_decays
-from pamid._dynamics._decay_data import load_decay
+from pamid._data._decay_file import load_decay
+from pamid._decays._analysis import analyze_decays
 
 ZETA, F_N, J = 0.05, 2.2, 0.46
 
@@ -194,7 +194,7 @@ def test_undamped_noisy_decay_keeps_its_estimate_inside_its_interval(tmp_path, c
 
 
 def test_overdamped_fit_gives_no_complex_numbers_and_says_why():
-    from pamid._dynamics._decay import _fit_derived
+    from pamid._decays._analysis import _fit_derived
 
     out = _fit_derived(np.array([1.5, 10.0, 0.1, 0.0, 0.0]), np.eye(5) * 1e-6, 100, J)
     assert math.isnan(out["log_decrement"]) and out["log_decrement_ci95"] is None
@@ -284,7 +284,7 @@ def test_diagnose_decay_file_says_the_inertia_must_be_positive(tmp_path, capsys,
 
 
 def test_check_inertia():
-    from pamid._dynamics._decay import check_inertia
+    from pamid._decays._analysis import check_inertia
 
     assert check_inertia(0.46) == 0.46
     for bad in (0.0, -1.0, math.nan, math.inf, "1", True):

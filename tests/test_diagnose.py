@@ -17,7 +17,9 @@ import pytest
 
 import pamid
 from pamid._data._curves import find_curves
-from pamid._data._virtual_effects import (
+from pamid._diagnose._api import diagnose
+from pamid._diagnose._residual import covariate_dependence, ljung_box, runs_test
+from pamid._effects._inject import (
     InjectedCompliance,
     InjectedCovariate,
     InjectedDrift,
@@ -25,8 +27,6 @@ from pamid._data._virtual_effects import (
     InjectedTemperature,
     InjectedViscousDamping,
 )
-from pamid._diagnose._api import diagnose
-from pamid._diagnose._residual import covariate_dependence, ljung_box, runs_test
 
 NOISE_N = 2.0 / math.sqrt(5.0)
 SPEEDS = (1.0, 3.0, 2.0, 1.5)  # seconds per point of successive sweeps

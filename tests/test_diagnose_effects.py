@@ -18,18 +18,18 @@ import numpy as np
 import pytest
 
 import pamid
-from pamid._data._virtual_effects import InjectedDrift, InjectedTemperature
-from pamid._data._virtual_isometric import virtual_lab_file
+from pamid._decays._coulomb import DECAY_EFFECTS as DECAY_FIT_NAMES
 from pamid._diagnose._api import diagnose
-from pamid._diagnose._effects import (
+from pamid._diagnose._report import format_report
+from pamid._effects._definitions import (
     DECAY_EFFECTS,
     STATIC_EFFECTS,
     _relaxation,
     moving_steps,
     time_since_step,
 )
-from pamid._diagnose._report import format_report
-from pamid._dynamics._coulomb import DECAY_EFFECTS as DECAY_FIT_NAMES
+from pamid._effects._inject import InjectedDrift, InjectedTemperature
+from pamid._virtual._isometric import virtual_lab_file
 
 ROWS = 1260  # 105 samples a trial: not in step with the valve (a real logger is not)
 CLEAN = {"transient_N_per_kPa": 0.0, "pressure_offset_kPa": 0.0,

@@ -1,4 +1,4 @@
-"""G (Cullinan eq. 3) fitted through the joint simulator to decays (pamid._dynamics._joint_fit)."""
+"""G (Cullinan eq. 3) fitted through the joint simulator to decays (pamid._decays._joint_fit)."""
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pamid
-from pamid._dynamics._joint_fit import fit_joint_decays
+from pamid._decays._joint_fit import fit_joint_decays
 from pamid._models._cullinan_presets import traditional_volume
 from pamid._sim._joint_sim import JointArm, joint_equilibrium_rad, simulate_joint_arm
 

@@ -12,7 +12,6 @@ import pytest
 
 import pamid
 from pamid._data._curves import find_curves
-from pamid._data._virtual_isometric import virtual_lab_file
 from pamid._fit._spec import SAROSI
 from pamid._plot import (
     MAX_LINES,
@@ -23,6 +22,7 @@ from pamid._plot import (
     plot_fit,
     plot_residuals,
 )
+from pamid._virtual._isometric import virtual_lab_file
 
 REAL_FILE = Path(__file__).resolve().parents[2] / "shared" / "data" / "aarl_festo10mm_isometric.csv"
 MAX_LEGEND = 8

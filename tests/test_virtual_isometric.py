@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 import pamid
-from pamid._data._virtual_isometric import LAB_FILE_KINDS
+from pamid._virtual._isometric import LAB_FILE_KINDS
 
 NOISE_FREE = dict(
     pressure_noise_kPa=0.0,

@@ -11,18 +11,18 @@ import pandas as pd
 import pytest
 
 import pamid  # noqa: F401  (switches float64 on)
-from pamid._data._virtual_joint import (
-    DeflectionProtocol,
-    JointSweepProtocol,
-    deflection_test_stiffness,
-    simulate_deflection_test,
-    simulate_joint_sweep,
-)
 from pamid._models import _cullinan_presets as cp
 from pamid._models._joint import (
     available_torque_Nm,
     closed_system_stiffness,
     closed_system_torque_Nm,
+)
+from pamid._virtual._joint import (
+    DeflectionProtocol,
+    JointSweepProtocol,
+    deflection_test_stiffness,
+    simulate_deflection_test,
+    simulate_joint_sweep,
 )
 
 QUIET = dict(

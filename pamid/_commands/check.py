@@ -27,15 +27,8 @@ import math
 import time
 from pathlib import Path
 
-from .dynamics import (
-    MAX_SEED,
-    _allow_negative_numbers,
-    _count,
-    _finite,
-    _plot_unit,
-    _safe,
-    _stage,
-)
+from .._io import safe_file_name
+from ._common import MAX_SEED, allow_negative_numbers, count, finite, plot_unit, stage
 
 #: Most posterior draws per trial that ``--posterior-draws`` simulates (one batched call).
 MAX_POSTERIOR_DRAWS = 100_000
@@ -72,7 +65,7 @@ def register(subparsers) -> None:
                           "its coverage of the recording (default 0: off)")
     chk.add_argument("--seed", type=int, default=0, help="PRNG seed for the posterior draws")
     chk.set_defaults(func=cmd_check_decays)
-    _allow_negative_numbers(chk)
+    allow_negative_numbers(chk)
 
 
 #: The keys of a model block that ``check-decays`` reads (ζ and f_n, or k and c).
@@ -160,7 +153,7 @@ def check_decays(data, models: list[dict], inertia: float) -> tuple[list[dict], 
     import jax.numpy as jnp
     import numpy as np
 
-    from .._dynamics._decay import _angle_unit, analyze_decays
+    from .._decays._analysis import analyze_decays, angle_unit
     from .._sim._oscillator import DampedOscillator, simulate_oscillator
 
     report = analyze_decays(data, inertia, fit=False)
@@ -184,7 +177,7 @@ def check_decays(data, models: list[dict], inertia: float) -> tuple[list[dict], 
     f_n = jnp.array([m["natural_frequency_Hz"] for m in models])
     # Simulated in a unit (a power of two) that keeps the angles, and the rates ω·β, far
     # from overflow; the decay is linear in the state and J cancels out of it.
-    unit = _angle_unit(np.concatenate([data.arrays(trial)[1] for trial in report.trials]))
+    unit = angle_unit(np.concatenate([data.arrays(trial)[1] for trial in report.trials]))
     # (Divided in NumPy: XLA flushes subnormal numbers such as 1e-320 to zero.)
     osc = DampedOscillator.from_modal(zeta, f_n, 1.0, jnp.array(np.divide(equilibria, unit)))
     run = simulate_oscillator(osc, jnp.array(np.divide(starts, unit)), 0.0, duration_s=duration,
@@ -239,18 +232,18 @@ def _rms(x) -> float:
 
 
 def cmd_check_decays(args) -> int:
-    from .._dynamics._decay_data import load_decay
+    from .._data._decay_file import load_decay
     from .._io import final_place, json_ready, write_text_atomic
 
     quiet = args.json
     t_start = time.perf_counter()
-    inertia = _finite("--inertia", args.inertia, positive=True, unit="kg·m²")
-    _count("--max-plots", args.max_plots)
-    _count("--posterior-draws", args.posterior_draws, high=MAX_POSTERIOR_DRAWS)
-    _count("--seed", args.seed, high=MAX_SEED)
+    inertia = finite("--inertia", args.inertia, positive=True, unit="kg·m²")
+    count("--max-plots", args.max_plots)
+    count("--posterior-draws", args.posterior_draws, high=MAX_POSTERIOR_DRAWS)
+    count("--seed", args.seed, high=MAX_SEED)
     data = load_decay(args.decay)
     models = _load_models(args.model_json, args.source, inertia, list(data.trials), args.pooled)
-    _stage(f"simulating {len(data.trials)} trial(s) in one batched call", quiet)
+    stage(f"simulating {len(data.trials)} trial(s) in one batched call", quiet)
     rows, curves = check_decays(data, models, inertia)
     payload = {"source": str(args.decay), "model_json": str(args.model_json),
                "inertia_kg_m2": inertia, "n_trials": len(rows),
@@ -260,9 +253,9 @@ def cmd_check_decays(args) -> int:
     if args.posterior_draws:
         import jax
 
-        from .._sampling._decay_posterior import fit_decay_mcmc
+        from .._decays._posterior import fit_decay_mcmc
 
-        _stage(f"sampling the posterior of {len(data.trials)} trial(s), then "
+        stage(f"sampling the posterior of {len(data.trials)} trial(s), then "
                f"{args.posterior_draws} draws per trial through the simulator", quiet)
         k_fit, k_pred = jax.random.split(jax.random.key(args.seed))
         try:
@@ -281,7 +274,7 @@ def cmd_check_decays(args) -> int:
             }
     if args.out:
         out = Path(args.out)
-        _stage(f"writing plots to {final_place(out)}", quiet)
+        stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _plot(curves, rows, out, args.max_plots)
         if pred is not None:
             for i, trial in enumerate(posterior.trials[: args.max_plots]):
@@ -351,7 +344,7 @@ def _plot(curves, rows, out: Path, max_plots: int) -> list[str]:
         keep = st <= w1
         fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8.0, 5.5), sharex=True,
                                        gridspec_kw={"height_ratios": [3, 1.3]})
-        unit, unit_label = _plot_unit(y)
+        unit, unit_label = plot_unit(y)
         ax.plot(t, y / unit, lw=0.8, color="0.4", label="recorded angle")
         ax.plot(st[keep], sy[keep] / unit, lw=1.0, color="C0", alpha=0.85,
                 label=f"simulated ({row['model']}), ζ = {row['model_zeta']:.4f}, "
@@ -369,7 +362,7 @@ def _plot(curves, rows, out: Path, max_plots: int) -> list[str]:
         ax_r.set_xlabel("time [s]")
         ax_r.grid(alpha=0.3)
         fig.tight_layout()
-        name = f"check_{_safe(row['trial'])}.png"
+        name = f"check_{safe_file_name(row['trial'])}.png"
         save_figure_atomic(fig, out / name, dpi=110)
         plt.close(fig)
         written.append(name)

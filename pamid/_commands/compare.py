@@ -145,11 +145,11 @@ def format_table(payload: dict) -> str:
 def write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
     """One PNG per muscle (at most ``max_plots``) of every model against the data, and one
     of the CV RMSE per model and muscle."""
-    from .._cli import _safe
+    from .._io import safe_file_name
 
     written = []
     for i, muscle in enumerate(bench.muscles[:max_plots]):
-        name = _safe(muscle) if bench.has_muscle_column else "muscle"
+        name = safe_file_name(muscle) if bench.has_muscle_column else "muscle"
         label = muscle if bench.has_muscle_column else Path(bench.path).name
         plot_models(bench.for_muscle(muscle), result, i, out / f"models_{name}.png",
                     f"Every model against the data — {label}")

@@ -11,10 +11,18 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import time
 import warnings
 from pathlib import Path
+
+from .._io import safe_file_name
+from ._common import (
+    allow_negative_numbers,
+    count,
+    finite,
+    plot_unit,
+    stage,
+)
 
 #: Accepted nominal lengths of the muscle, mm (a PAM of 1 cm to 10 m).
 MIN_L0_MM, MAX_L0_MM = 10.0, 10_000.0
@@ -65,7 +73,7 @@ def register(subparsers) -> None:
     lm.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     lm.add_argument("--out", help="folder for lifting_mass.png and lifting_mass.json")
     lm.set_defaults(func=cmd_lifting_mass)
-    _allow_negative_numbers(lm)
+    allow_negative_numbers(lm)
 
     from .positioning import add_positioning_parser
 
@@ -91,72 +99,7 @@ def register(subparsers) -> None:
     dmp.add_argument("--out", help="folder for plots (PNG) and damping.json")
     dmp.add_argument("--max-plots", type=int, default=6, help="trials to plot (default 6)")
     dmp.set_defaults(func=cmd_damping)
-    _allow_negative_numbers(dmp)
-
-
-def _stage(message: str, quiet: bool) -> None:
-    if not quiet:
-        print(f"[pamid] {message}", file=sys.stderr, flush=True)
-
-
-def _shown(value) -> str:
-    """An option's value as the user wrote it, with NaN spelled out."""
-    if isinstance(value, float) and math.isnan(value):
-        return "nan (not a number)"
-    return f"{value:g}" if isinstance(value, float) else repr(value)
-
-
-def _finite(name: str, value: float, *, positive: bool = False, low=None, high=None,
-            unit: str = "") -> float:
-    """``value`` of the option ``name`` if it is a finite number in the accepted range, else
-    ValueError with one line that names the option, the range and the value (NaN, ±inf,
-    out of range alike). ``positive``: > 0; ``low``/``high``: inclusive bounds."""
-    u = f" {unit}" if unit else ""
-    if positive and high is not None:
-        accepted = f"positive and at most {high:g}{u}"
-    elif positive:
-        accepted = f"positive (> 0{u})"
-    elif low is not None and high is not None:
-        accepted = f"lie in [{low:g}, {high:g}]{u}"
-    elif low is not None:
-        accepted = f"be at least {low:g}{u}"
-    elif high is not None:
-        accepted = f"be at most {high:g}{u}"
-    else:
-        accepted = "be a finite number"
-    if not accepted.startswith(("be ", "lie ")):
-        accepted = "be " + accepted
-    ok = (isinstance(value, (int, float)) and math.isfinite(value)
-          and not (positive and value <= 0)
-          and not (low is not None and value < low) and not (high is not None and value > high))
-    if not ok:
-        raise ValueError(f"{name} must {accepted}, got {_shown(value)}")
-    return float(value)
-
-
-def _count(name: str, value: int, *, low: int = 0, high: int | None = None) -> int:
-    """An integer option in [low, high]; ValueError naming the option and the range."""
-    if value < low or high is not None and value > high:
-        accepted = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
-        raise ValueError(f"{name} must be an integer {accepted}, got {value}")
-    return value
-
-
-#: Seeds that :func:`jax.random.key` turns into distinct keys.
-MAX_SEED = 2**32 - 1
-
-
-def _allow_negative_numbers(parser) -> None:
-    """Let ``parser`` read ``--x0-mm -1e-3``, ``--v0-mm-s -inf`` and ``--zeta -nan`` as values.
-
-    argparse takes an argument for a value only if it looks like ``-5`` or ``-.5``; ``-1e-3``
-    or ``-inf`` would be taken for an unknown option ("expected one argument"). This parser
-    has no option that looks like a number, so every float literal is a value.
-    """
-    import re
-
-    parser._negative_number_matcher = re.compile(
-        r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+    allow_negative_numbers(dmp)
 
 
 # --------------------------------------------------------------------------------------
@@ -186,15 +129,15 @@ def cmd_lifting_mass(args) -> int:
 
     quiet = args.json
     t_start = time.perf_counter()
-    p = _finite("--pressure-kPa", args.pressure_kPa, low=0.0, high=1000.0, unit="kPa")
-    m = _finite("--mass-kg", args.mass_kg, positive=True, unit="kg")
-    l0_mm = _finite("--l0-mm", args.l0_mm, low=MIN_L0_MM, high=MAX_L0_MM, unit="mm")
-    x0_mm = _finite("--x0-mm", args.x0_mm, low=-0.1 * l0_mm, high=0.5 * l0_mm,
+    p = finite("--pressure-kPa", args.pressure_kPa, low=0.0, high=1000.0, unit="kPa")
+    m = finite("--mass-kg", args.mass_kg, positive=True, unit="kg")
+    l0_mm = finite("--l0-mm", args.l0_mm, low=MIN_L0_MM, high=MAX_L0_MM, unit="mm")
+    x0_mm = finite("--x0-mm", args.x0_mm, low=-0.1 * l0_mm, high=0.5 * l0_mm,
                     unit=f"mm (−10 … 50 % of l0 = {l0_mm:g} mm)")
-    v0 = _finite("--v0-mm-s", args.v0_mm_s, low=-MAX_V0_MM_S, high=MAX_V0_MM_S, unit="mm/s")
-    duration = _finite("--duration-s", args.duration_s, positive=True, high=3600.0, unit="s")
-    rate = _finite("--sample-rate-Hz", args.sample_rate_Hz, positive=True, high=1e5, unit="Hz")
-    g = _finite("--gravity", args.gravity, positive=True, unit="m/s²")
+    v0 = finite("--v0-mm-s", args.v0_mm_s, low=-MAX_V0_MM_S, high=MAX_V0_MM_S, unit="mm/s")
+    duration = finite("--duration-s", args.duration_s, positive=True, high=3600.0, unit="s")
+    rate = finite("--sample-rate-Hz", args.sample_rate_Hz, positive=True, high=1e5, unit="Hz")
+    g = finite("--gravity", args.gravity, positive=True, unit="m/s²")
     if duration * rate > 5e6:
         raise ValueError(f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples; "
                          "the limit is 5e6 (shorten --duration-s or lower --sample-rate-Hz)")
@@ -203,10 +146,10 @@ def cmd_lifting_mass(args) -> int:
                          f"than 2 samples; the duration must be at least 1/rate = "
                          f"{1 / rate:g} s")
     if args.zeta is not None:
-        zeta = _finite("--zeta", args.zeta, low=0.0, high=10.0)
+        zeta = finite("--zeta", args.zeta, low=0.0, high=10.0)
     h = None
     if args.zeta is None and args.hysteresis_N_per_bar is not None:
-        h = _finite("--hysteresis-N-per-bar", args.hysteresis_N_per_bar, low=0.0, unit="N/bar")
+        h = finite("--hysteresis-N-per-bar", args.hysteresis_N_per_bar, low=0.0, unit="N/bar")
     if p > 500.0:
         warnings.warn(f"{p:g} kPa is above the 0–500 kPa that Table 3-1 was fitted on; "
                       "eq. 2.1 is extrapolated", stacklevel=2)
@@ -259,7 +202,7 @@ def cmd_lifting_mass(args) -> int:
             f"sample at {rate:g} Hz to follow it, {n_steps:.3g} steps in all over "
             f"{duration:g} s, above the limit {MAX_RK4_STEPS:.0e} (shorten --duration-s or "
             "raise --mass-kg)")
-    _stage(f"simulating {duration:g} s at {rate:g} Hz (RK4, Sárosi eq. 2.2), ζ = {zeta:.4g}",
+    stage(f"simulating {duration:g} s at {rate:g} Hz (RK4, Sárosi eq. 2.2), ζ = {zeta:.4g}",
            quiet)
     run = simulate_lifting_mass(model, x0_mm / 1000.0, v0 / 1000.0, duration_s=duration,
                                 sample_rate_Hz=rate, substeps=substeps)
@@ -309,7 +252,7 @@ def cmd_lifting_mass(args) -> int:
                                      "displacement_mm": FIG_3_6["displacement_mm"]}
     if args.out:
         out = Path(args.out)
-        _stage(f"writing the plot to {final_place(out)}", quiet)
+        stage(f"writing the plot to {final_place(out)}", quiet)
         _plot_lifting_mass(t, s, force, c, eq, m * g, settle, payload, out / "lifting_mass.png")
         payload["plots"] = ["lifting_mass.png"]
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
@@ -416,23 +359,23 @@ def _plot_lifting_mass(t, s, force, c, eq, weight, settle, d, path) -> None:
 
 
 def cmd_damping(args) -> int:
-    from .._dynamics._decay import analyze_decays
-    from .._dynamics._decay_data import load_decay
+    from .._data._decay_file import load_decay
+    from .._decays._analysis import analyze_decays
     from .._io import final_place, write_text_atomic
 
     quiet = args.json
     t_start = time.perf_counter()
-    inertia = _finite("--inertia", args.inertia, positive=True, unit="kg·m²")
-    _count("--max-plots", args.max_plots)
+    inertia = finite("--inertia", args.inertia, positive=True, unit="kg·m²")
+    count("--max-plots", args.max_plots)
     data = load_decay(args.decay)
-    _stage(f"loaded {len(data)} samples, {len(data.trials)} trial(s) from {args.decay}", quiet)
-    _stage("peaks and troughs, logarithmic decrement (Cullinan eq. 8–11)"
+    stage(f"loaded {len(data)} samples, {len(data.trials)} trial(s) from {args.decay}", quiet)
+    stage("peaks and troughs, logarithmic decrement (Cullinan eq. 8–11)"
            + ("" if args.no_fit else "; trajectory fit (batched Levenberg–Marquardt)"), quiet)
     report = analyze_decays(data, inertia, fit=not args.no_fit)
     payload = report.to_dict()
     if args.out:
         out = Path(args.out)
-        _stage(f"writing plots to {final_place(out)}", quiet)
+        stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _plot_decays(data, report, out, args.max_plots)
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
     if args.out:
@@ -574,22 +517,6 @@ def _interval_notes(d: dict) -> list[tuple[str, str]]:
     return out
 
 
-def _plot_unit(y) -> tuple[float, str]:
-    """(unit, label) for an angle axis: rad, or a power of ten of rad for angles whose
-    largest magnitude lies outside 1e-6 … 1e6 rad."""
-    import numpy as np
-
-    top = float(np.max(np.abs(y))) if len(y) else 0.0
-    if top == 0.0 or not np.isfinite(top) or 1e-6 <= top <= 1e6:
-        return 1.0, "rad"
-    k = math.floor(math.log10(top))
-    return 10.0**k, f"1e{k} rad"
-
-
-def _safe(name: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
-
-
 def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
     import matplotlib
 
@@ -606,7 +533,7 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
         e = report.extrema[i]
         dec = report.decrement[i]
         fig, ax = plt.subplots(figsize=(8.0, 4.5))
-        unit, unit_label = _plot_unit(y)  # matplotlib cannot scale an axis of 1e-300 rad
+        unit, unit_label = plot_unit(y)  # matplotlib cannot scale an axis of 1e-300 rad
         ax.plot(t, y / unit, lw=0.8, color="0.4", label="recorded angle")
         n = e.n_used
         ax.plot(e.time_s[:n], e.angle_rad[:n] / unit, "o", color="C3", ms=4,
@@ -633,7 +560,7 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
         ax.legend(fontsize=8, loc="upper right")
         ax.grid(alpha=0.3)
         fig.tight_layout()
-        name = f"decay_{_safe(trial)}.png"
+        name = f"decay_{safe_file_name(trial)}.png"
         save_figure_atomic(fig, out / name, dpi=110)
         plt.close(fig)
         written.append(name)

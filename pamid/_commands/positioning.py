@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from .dynamics import MAX_SEED, _allow_negative_numbers, _count, _finite
+from ._common import MAX_SEED, allow_negative_numbers, count, finite
 
 #: Travel the linear rig's pair allows either side of its middle (pre-contraction 20 mm).
 MAX_TARGET_MM = 20.0
@@ -78,7 +78,7 @@ def add_positioning_parser(systems_subparsers) -> None:
     ps.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     ps.add_argument("--out", help="folder for positioning.png and positioning.json")
     ps.set_defaults(func=cmd_positioning)
-    _allow_negative_numbers(ps)
+    allow_negative_numbers(ps)
 
 
 def _stage(message: str, quiet: bool) -> None:
@@ -110,14 +110,14 @@ def cmd_positioning(args) -> int:
 
     quiet = args.json
     t_start = time.perf_counter()
-    target = _finite("--target-mm", args.target_mm, low=-MAX_TARGET_MM, high=MAX_TARGET_MM,
+    target = finite("--target-mm", args.target_mm, low=-MAX_TARGET_MM, high=MAX_TARGET_MM,
                      unit="mm")
-    temperature = _finite("--temperature-C", args.temperature_C, low=-40.0, high=100.0,
+    temperature = finite("--temperature-C", args.temperature_C, low=-40.0, high=100.0,
                           unit="°C")
-    duration = _finite("--duration-s", args.duration_s, low=0.05, high=120.0, unit="s")
-    _count("--draws", args.draws, high=100_000)
-    _count("--seed", args.seed, high=MAX_SEED)
-    _count("--muscle", args.muscle)
+    duration = finite("--duration-s", args.duration_s, low=0.05, high=120.0, unit="s")
+    count("--draws", args.draws, high=100_000)
+    count("--seed", args.seed, high=MAX_SEED)
+    count("--muscle", args.muscle)
     if args.fit:
         try:
             fit = json.loads(Path(args.fit).read_text())

@@ -1,9 +1,9 @@
 """Diagnosis of free decays: the linear oscillator and what its residual says it lacks.
 
 Baseline: J·β̈ + c·β̇ + k·(β − β_eq) = 0 fitted trial by trial (Cullinan section VI,
-eq. 8–11; :func:`pamid._dynamics._decay.fit_decay_trajectories`). Its damping is already
+eq. 8–11; :func:`pamid._decays._analysis.fit_decay_trajectories`). Its damping is already
 viscous, so the candidates for decays are the effects it cannot produce
-(:mod:`pamid._dynamics._coulomb`):
+(:mod:`pamid._decays._coulomb`):
 
 * ``coulomb_friction``: a constant friction torque T_c·sign(β̇) (the sliding seal, the
   cable over the pulley), which makes the amplitude fall linearly instead of geometrically;
@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ._effects import DECAY_EFFECTS
+from .._effects._definitions import DECAY_EFFECTS
+from ._result import analyse_residual, build_diagnosis, unexplained
 from ._select import SetFit, forward_select
 
 COVARIATE_OF = {e.name: e.covariate for e in DECAY_EFFECTS}
@@ -38,9 +39,8 @@ def _set_fit(model_fit) -> SetFit:
 
 
 def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
-    from .._dynamics._coulomb import fit_decay_models
-    from .._dynamics._decay import analyze_decays, check_inertia
-    from ._api import _unexplained, analyse_residual, build_diagnosis
+    from .._decays._analysis import analyze_decays, check_inertia
+    from .._decays._coulomb import fit_decay_models
 
     if inertia_kg_m2 is None:
         raise ValueError(f"{data.path}: a decay file needs the arm's moment of inertia: "
@@ -87,7 +87,7 @@ def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
                                    if k in f.params}})
     return build_diagnosis(data.path, "decay", "linear oscillator (Cullinan eq. 8–11)",
                            list(data.trials), result, before, after, constants, table,
-                           _unexplained(after, runs_test_applies=quantum == 0.0))
+                           unexplained(after, runs_test_applies=quantum == 0.0))
 
 
 def _long_table(data, base: SetFit, final: SetFit) -> pd.DataFrame:

@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from .._effects._basis import legendre_basis, scaled
+
 __all__ = ["covariate_dependence", "ljung_box", "runs_test", "scaled", "legendre_basis"]
 
 
@@ -70,24 +72,6 @@ def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
     den = sum(float((r - np.mean(r)) @ (r - np.mean(r))) for r in residuals)
     rho1 = num / den if den > 0 else math.nan
     return {"q": q, "dof": dof, "lags": lags, "p_value": p, "lag1_autocorrelation": rho1}
-
-
-def scaled(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Map [lo, hi] onto [−1, 1] (a constant covariate maps to 0)."""
-    span = hi - lo
-    if not np.isfinite(span) or span <= 0:
-        return np.zeros_like(values, dtype=float)
-    return 2.0 * (np.asarray(values, float) - lo) / span - 1.0
-
-
-def legendre_basis(z, degree: int):
-    """Legendre polynomials P1…P_degree of z (array module agnostic: NumPy or jax.numpy)."""
-    cols = []
-    p_prev, p = 1.0, z
-    for k in range(1, degree + 1):
-        cols.append(p)
-        p_prev, p = p, ((2 * k + 1) * z * p - k * p_prev) / (k + 1)
-    return cols
 
 
 def _demean(values: np.ndarray, groups: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ one at a time, any selected effect that, given the others, no longer lowers the 
 one-sided Wilcoxon signed-rank test on each curve's held-out error, p < :data:`CV_P`).
 
 A candidate whose fitted constants land at or past a physical bound (a negative compliance,
-a hysteresis loop run backwards: :mod:`pamid._diagnose._effects`) is never significant,
+a hysteresis loop run backwards: :mod:`pamid._effects._definitions`) is never significant,
 however much it lowers the BIC; its row says what it would have needed (``unphysical``).
 """
 

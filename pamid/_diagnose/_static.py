@@ -19,7 +19,7 @@ effect                 added to the force (N)                   constants
 ``covariate:<col>``    b1·P1(z) + b2·P2(z) + b3·P3(z)           b1, b2, b3 (N)
 =====================  =======================================  ==========================
 
-Each effect is one definition in :mod:`pamid._diagnose._effects` (its constants, units,
+Each effect is one definition in :mod:`pamid._effects._definitions` (its constants, units,
 physical bounds, source and the virtual bench's injector); this module reads that registry.
 
 For ``covariate:<col>`` z is the column scaled to [−1, 1] over the file and P_k are Legendre
@@ -45,15 +45,7 @@ import numpy as np
 import pandas as pd
 
 from .._data._holdout import holdout_units
-from .._fit import _export_cache
-from .._fit._api import fit_least_squares
-from .._fit._batch import map_lanes, pack
-from .._fit._engine import CONVERGED, levenberg_marquardt
-from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
-from .._fit._sharding import lane_devices
-from .._fit._spec import ModelSpec, builtin_key
-from .._units import KPA_PER_BAR
-from ._effects import (
+from .._effects._definitions import (
     COVARIATE_DEGREE,
     STATIC_EFFECTS,
     Effect,
@@ -63,6 +55,14 @@ from ._effects import (
     time_since_step,
     transforms,
 )
+from .._fit import _export_cache
+from .._fit._api import fit_least_squares
+from .._fit._batch import map_lanes, pack
+from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
+from .._fit._sharding import lane_devices
+from .._fit._spec import ModelSpec, builtin_key
+from .._units import KPA_PER_BAR
 from ._residual import legendre_basis, scaled
 from ._select import SetFit
 
@@ -111,7 +111,7 @@ def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFr
     clock restarts), the rate of contraction ``speed_mm_s`` (or ``speed_pct_s`` without
     l0; zero at a held length) and, where the pressure moves at a held length, the
     pressure rate ``pressure_rate_kPa_s`` and the time since the last step of the moving
-    pressure in its trial ``time_since_step_s`` (:func:`pamid._diagnose._effects.
+    pressure in its trial ``time_since_step_s`` (:func:`pamid._effects._definitions.
     time_since_step`); ``repeat``, the trial's (or cycle's) order among the repeats of its
     setting, when there are repeats.
     """
@@ -258,7 +258,7 @@ class StaticProblem:
             file=self.file, speed=speed, l0_mm=self.l0_mm[i], max_dF_dp_N_per_kPa=slope)
 
     def _effects(self) -> list[Effect]:
-        """The registry's effects (:data:`pamid._diagnose._effects.STATIC_EFFECTS`) that
+        """The registry's effects (:data:`pamid._effects._definitions.STATIC_EFFECTS`) that
         this file has the covariates for, with their feature columns or transform slot."""
         effects: list[Effect] = []
         col = 0
@@ -505,7 +505,7 @@ def _inputs(spec) -> dict:
 
 
 def _predict(spec, theta, tvals, x, implicit: bool):
-    """F_model with the transform effects (:func:`pamid._diagnose._effects.transforms`) at
+    """F_model with the transform effects (:func:`pamid._effects._definitions.transforms`) at
     the constants ``tvals``: F = F_model(θ; T(x, F)), by Newton from the plain model where a
     transform depends on the force (the rig's compliance: F = F_model(p, x + c·F))."""
     io = _inputs(spec)

@@ -3,9 +3,9 @@
 Every least-squares problem that pamid solves with its own loop goes through
 :func:`levenberg_marquardt`: the diagnosis refits (a model plus candidate effects, some
 constants held by a mask so that every effect set of a batch has the same shape), the
-free-decay trajectory fits (linear, :mod:`pamid._dynamics._decay`; with friction,
-:mod:`pamid._dynamics._coulomb`) and the joint's decay fits
-(:mod:`pamid._dynamics._joint_fit`). Static force laws are solved by optimistix or jaxopt
+free-decay trajectory fits (linear, :mod:`pamid._decays._analysis`; with friction,
+:mod:`pamid._decays._coulomb`) and the joint's decay fits
+(:mod:`pamid._decays._joint_fit`). Static force laws are solved by optimistix or jaxopt
 (``_least_squares``, where the solver is the user's choice), or by a model's registered
 written-out kernels (Sárosi's Gauss–Newton).
 

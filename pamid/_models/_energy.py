@@ -34,7 +34,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import _require
+from .._checks import require
 from .._units import ATMOSPHERE_KPA, PA_PER_KPA
 from ._cullinan import Cullinan
 from ._joint import (
@@ -102,8 +102,8 @@ def compressor_work_J(
     air is lost).
     Broadcasts; differentiable (the Δm ≤ 0 branch is masked safely).
     """
-    _require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
-    _require("temperature_K", temperature_K, lambda a: a > 0, "> 0 (an absolute temperature)")
+    require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
+    require("temperature_K", temperature_K, lambda a: a > 0, "> 0 (an absolute temperature)")
     rt = R_AIR_J_PER_KG_K * jnp.asarray(temperature_K, float)  # J/kg
     p_atm = jnp.asarray(p_atm_kPa, float) * PA_PER_KPA  # Pa
     p_m1 = jnp.asarray(p1_kPa, float) * PA_PER_KPA + p_atm  # Pa, absolute
@@ -149,14 +149,14 @@ def trajectory_energy_J(
     muscle. Identical muscles in tension and rigid cables, as eq. 6 and eq. 7 assume (the
     geometry's cable compliance is not used). Use ``vmap`` for batches of trajectories.
     """
-    _require("p_max_kPa", p_max_kPa, lambda a: a > 0, "> 0")
+    require("p_max_kPa", p_max_kPa, lambda a: a > 0, "> 0")
     beta = jnp.asarray(beta_traj_rad, float)
     if beta.ndim != 1 or beta.shape[0] < 1:
         raise ValueError(
             f"beta_traj_rad must be a 1-D trajectory of at least one angle; got shape {beta.shape}"
         )
-    _require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
-    _require("temperature_K", temperature_K, lambda a: a > 0, "> 0 (an absolute temperature)")
+    require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
+    require("temperature_K", temperature_K, lambda a: a > 0, "> 0 (an absolute temperature)")
     return _trajectory_energy(
         params,
         geometry,

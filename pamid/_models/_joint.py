@@ -65,7 +65,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import _require
+from .._checks import require
 from .._units import ATMOSPHERE_KPA
 from ._cullinan import Cullinan, cullinan_force
 from ._volume import PamVolume, closed_system_pressure_kPa
@@ -99,9 +99,9 @@ class JointGeometry(eqx.Module):
     cable_compliance_mm_per_N: Float[Array, "..."]
 
     def __init__(self, pulley_radius_mm, beta_range_rad, cable_compliance_mm_per_N=0.0):
-        _require("pulley_radius_mm", pulley_radius_mm, lambda a: a > 0, "> 0")
-        _require("beta_range_rad", beta_range_rad, lambda a: a > 0, "> 0 (the total range)")
-        _require("cable_compliance_mm_per_N", cable_compliance_mm_per_N, lambda a: a >= 0, ">= 0")
+        require("pulley_radius_mm", pulley_radius_mm, lambda a: a > 0, "> 0")
+        require("beta_range_rad", beta_range_rad, lambda a: a > 0, "> 0 (the total range)")
+        require("cable_compliance_mm_per_N", cable_compliance_mm_per_N, lambda a: a >= 0, ">= 0")
         self.pulley_radius_mm = jnp.asarray(pulley_radius_mm, float)
         self.beta_range_rad = jnp.asarray(beta_range_rad, float)
         self.cable_compliance_mm_per_N = jnp.asarray(cable_compliance_mm_per_N, float)
@@ -231,7 +231,7 @@ def _tension_fn(
     return tension
 
 
-def _state(
+def joint_state(
     params1: Cullinan,
     params2: Cullinan,
     geometry: JointGeometry,
@@ -284,7 +284,7 @@ def muscle_state(
     With ``tensile_only`` a slack muscle's tension is 0 (a PAM only pulls); otherwise the
     tensions are eq. 3's forces as they are, negative ones included.
     """
-    return _state(
+    return joint_state(
         params1,
         params2,
         geometry,
@@ -296,7 +296,7 @@ def muscle_state(
     )
 
 
-def _torque_from_state(geometry: JointGeometry, state: MuscleState) -> Float[Array, "..."]:
+def torque_from_state(geometry: JointGeometry, state: MuscleState) -> Float[Array, "..."]:
     """Cullinan eq. 4 in N·m: T = (r_mm / 1000)·(F1 − F2)."""
     return geometry.pulley_radius_mm / _MM_PER_M * (state.f1_N - state.f2_N)
 
@@ -321,7 +321,7 @@ def joint_torque_Nm(
     state = muscle_state(
         params1, params2, geometry, beta_rad, p1_kPa, p2_kPa, beta_dot_rad_s, tensile_only
     )
-    return _torque_from_state(geometry, state)
+    return torque_from_state(geometry, state)
 
 
 def joint_torque_eq6_Nm(
@@ -413,7 +413,7 @@ def available_torque_Nm(
     r·max(F(P_max, y2(β)), 0). As in Cullinan's Fig. 4 model lines, the other muscle's pull
     is not subtracted. Cable stretch is included when the geometry has it.
     """
-    _require("p_max_kPa", p_max_kPa, lambda a: a > 0, "> 0")
+    require("p_max_kPa", p_max_kPa, lambda a: a > 0, "> 0")
     state = muscle_state(params, params, geometry, beta_rad, p_max_kPa, p_max_kPa)
     scale = geometry.pulley_radius_mm / _MM_PER_M
     return AvailableTorque(scale * state.f1_N, scale * state.f2_N)
@@ -497,7 +497,7 @@ def max_isobaric_stiffness(
     Broadcasts over ``beta_rad`` and ``torque_Nm`` (and works under ``vmap``); differentiable
     in the inputs through the implicit function theorem at the solution.
     """
-    _require("p_max_kPa", p_max_kPa, lambda a: a > 0, "> 0")
+    require("p_max_kPa", p_max_kPa, lambda a: a > 0, "> 0")
     return _max_isobaric_stiffness(params, geometry, beta_rad, torque_Nm, p_max_kPa)
 
 
@@ -577,8 +577,8 @@ def closed_system_torque_Nm(
 
 
 def _check_gas(polytropic_n, p_atm_kPa) -> None:
-    _require("polytropic_n", polytropic_n, lambda a: a > 0, "> 0")
-    _require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
+    require("polytropic_n", polytropic_n, lambda a: a > 0, "> 0")
+    require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
 
 
 @functools.partial(jax.jit, static_argnames=("tensile_only",))
@@ -602,7 +602,7 @@ def _closed_system_torque(
     def sealed(y0, p0):
         return lambda y: closed_system_pressure_kPa(volume, y0, p0, y, polytropic_n, p_atm_kPa)
 
-    state = _state(
+    state = joint_state(
         params1,
         params2,
         geometry,
@@ -612,7 +612,7 @@ def _closed_system_torque(
         0.0,
         tensile_only,
     )
-    return _torque_from_state(geometry, state)
+    return torque_from_state(geometry, state)
 
 
 def closed_system_stiffness(
@@ -651,7 +651,7 @@ def closed_system_stiffness(
     deflections = jnp.asarray(deflections_deg, float)
     if deflections.ndim != 1 or deflections.size == 0:
         raise ValueError("deflections_deg must be a non-empty sequence of angles in degrees")
-    _require("deflections_deg", deflections_deg, lambda a: a > 0, "> 0 (magnitudes)")
+    require("deflections_deg", deflections_deg, lambda a: a > 0, "> 0 (magnitudes)")
     _check_gas(polytropic_n, p_atm_kPa)
     return _closed_system_stiffness(
         params1,

@@ -177,3 +177,27 @@ def table_3_1_fit_json() -> dict:
     of each constant), for whatever reads a fit: ``--fit`` options, comparisons."""
     params = {k: {"value": v["value"], "ci95": list(v["ci95"])} for k, v in TABLE_3_1.items()}
     return {"model": "sarosi", "muscles": [{"params": params}]}
+
+
+def contraction_at_force_pct(params: Sarosi, pressure_bar, kappa_max_pct, min_force_N):
+    """Contraction at which the model force falls to ``min_force_N``, capped at κ_max.
+
+    Bisection on [0, κ_max]; the force of a real muscle falls monotonically with
+    contraction at constant pressure, so the root is unique where it exists.
+    """
+
+    def f(k):
+        return sarosi_force(params, pressure_bar, k) - min_force_N
+
+    lo = jnp.zeros_like(pressure_bar)
+    hi = jnp.full_like(pressure_bar, kappa_max_pct)
+    reaches_end = f(hi) > 0
+
+    def body(_, bracket):
+        lo, hi = bracket
+        mid = 0.5 * (lo + hi)
+        above = f(mid) > 0
+        return jnp.where(above, mid, lo), jnp.where(above, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, 80, body, (lo, hi))
+    return jnp.where(reaches_end, kappa_max_pct, lo)

@@ -59,7 +59,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import _concrete, _require
+from .._checks import concrete_or_none, require
 from .._units import ATMOSPHERE_KPA
 
 #: The braid angle at which a braided muscle stops contracting, arctan √2 ≈ 54.74°.
@@ -92,17 +92,17 @@ class PamVolume(eqx.Module):
         dead_volume_mm3=0.0,
         element_diameter_mm=0.0,
     ):
-        _require("active_length_mm", active_length_mm, lambda a: a > 0, "> 0")
-        _require("rest_diameter_mm", rest_diameter_mm, lambda a: a > 0, "> 0")
-        _require(
+        require("active_length_mm", active_length_mm, lambda a: a > 0, "> 0")
+        require("rest_diameter_mm", rest_diameter_mm, lambda a: a > 0, "> 0")
+        require(
             "rest_braid_angle_rad",
             rest_braid_angle_rad,
             lambda a: (a > 0) & (a < MAX_BRAID_ANGLE_RAD),
             f"in (0, {MAX_BRAID_ANGLE_RAD:.4f}) rad, i.e. below 54.74°",
         )
-        _require("dead_volume_mm3", dead_volume_mm3, lambda a: a >= 0, ">= 0")
-        _require("element_diameter_mm", element_diameter_mm, lambda a: a >= 0, ">= 0")
-        d_el, d_0 = _concrete(element_diameter_mm), _concrete(rest_diameter_mm)
+        require("dead_volume_mm3", dead_volume_mm3, lambda a: a >= 0, ">= 0")
+        require("element_diameter_mm", element_diameter_mm, lambda a: a >= 0, ">= 0")
+        d_el, d_0 = concrete_or_none(element_diameter_mm), concrete_or_none(rest_diameter_mm)
         if d_el is not None and d_0 is not None and not np.all(d_el < d_0):
             raise ValueError(
                 "element_diameter_mm must be smaller than rest_diameter_mm "
@@ -211,9 +211,9 @@ def closed_system_pressure_kPa(
 
         P′(y) = (P0′ + P_atm)·(V(y0)/V(y))^k − P_atm.
     """
-    _require("polytropic_n", polytropic_n, lambda a: a > 0, "> 0")
-    _require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
-    p0, p_atm0 = _concrete(p0_kPa), _concrete(p_atm_kPa)
+    require("polytropic_n", polytropic_n, lambda a: a > 0, "> 0")
+    require("p_atm_kPa", p_atm_kPa, lambda a: a > 0, "> 0 (an absolute pressure)")
+    p0, p_atm0 = concrete_or_none(p0_kPa), concrete_or_none(p_atm_kPa)
     if p0 is not None and p_atm0 is not None and not np.all(p0 + p_atm0 > 0):
         raise ValueError(
             f"p0_kPa is a gauge pressure and must be > -p_atm_kPa = {-p_atm0}; got {p0.tolist()}"

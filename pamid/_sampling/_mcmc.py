@@ -376,7 +376,7 @@ class McmcResult:
         """The JSON shape of ``pamid fit --method mcmc --json``: that of the least-squares
         fit, each constant with ``hdi95``, ``r_hat``, ``ess_bulk`` and ``ess_tail`` too,
         and its least-squares value and Wald interval under ``"ls"``."""
-        from .._fit._api import _num, _pair
+        from .._io import json_ready
 
         unit = self.spec.output[1]  # N for force models (keys rmse_N, sigma_N), rad for decays
         muscles = []
@@ -384,29 +384,30 @@ class McmcResult:
             entries = {}
             for j, name in enumerate(self.var_names):
                 entry = {
-                    "value": _num(self.mean[i, j]),
-                    "ci95": _pair(self.eti95[i, j]),
-                    "se": _num(self.sd[i, j]),
+                    "value": json_ready(self.mean[i, j]),
+                    "ci95": json_ready(self.eti95[i, j]),
+                    "se": json_ready(self.sd[i, j]),
                     "unit": self.var_units[name],
-                    "hdi95": _pair(self.hdi95[i, j]),
-                    "r_hat": _num(self.r_hat[i, j]),
-                    "ess_bulk": _num(self.ess_bulk[i, j]),
-                    "ess_tail": _num(self.ess_tail[i, j]),
-                    "mcse_mean": _num(self.mcse_mean[i, j]),
-                    "tau_steps": _num(self.tau_steps[i, j]),
+                    "hdi95": json_ready(self.hdi95[i, j]),
+                    "r_hat": json_ready(self.r_hat[i, j]),
+                    "ess_bulk": json_ready(self.ess_bulk[i, j]),
+                    "ess_tail": json_ready(self.ess_tail[i, j]),
+                    "mcse_mean": json_ready(self.mcse_mean[i, j]),
+                    "tau_steps": json_ready(self.tau_steps[i, j]),
                 }
                 if j < len(self.param_names):
-                    ls = {"value": _num(self.ls.theta[i, j]), "ci95": _pair(self.ls.ci95[i, j])}
+                    ls = {"value": json_ready(self.ls.theta[i, j]),
+                          "ci95": json_ready(self.ls.ci95[i, j])}
                     if self.ls.ci95_profile is not None:
-                        ls["ci95_profile"] = _pair(self.ls.ci95_profile[i, j])
+                        ls["ci95_profile"] = json_ready(self.ls.ci95_profile[i, j])
                     entry["ls"] = ls
                 entries[name] = entry
             sigma = entries.pop("sigma")
             muscles.append({
                 "muscle": muscle,
                 "n": int(self.n[i]),
-                f"rmse_{unit}": _num(self.rmse_N[i]),
-                "r": _num(self.r[i]),
+                f"rmse_{unit}": json_ready(self.rmse_N[i]),
+                "r": json_ready(self.r[i]),
                 "converged": bool(self.converged[i]),
                 # the run-length control's verdict, in the fit's result codes: not
                 # converged means the step budget ran out before R-hat and ESS were met
@@ -416,12 +417,12 @@ class McmcResult:
                 "params": entries,
                 f"sigma_{unit}": sigma,
                 "sampling": {
-                    "acceptance": _num(self.acceptance[i]),
-                    "tau_max_steps": _num(self.tau_steps[i].max()),
-                    "kept_over_tau": _num(self.kept_steps / self.tau_steps[i].max()),
+                    "acceptance": json_ready(self.acceptance[i]),
+                    "tau_max_steps": json_ready(self.tau_steps[i].max()),
+                    "kept_over_tau": json_ready(self.kept_steps / self.tau_steps[i].max()),
                     "enough_steps": bool(self.enough_steps[i]),
-                    "r_hat_max": _num(self.r_hat[i].max()),
-                    "ess_bulk_min": _num(self.ess_bulk[i].min()),
+                    "r_hat_max": json_ready(self.r_hat[i].max()),
+                    "ess_bulk_min": json_ready(self.ess_bulk[i].min()),
                 },
             })
         return {

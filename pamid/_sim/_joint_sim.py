@@ -11,7 +11,7 @@ Equation of motion (one rotational degree of freedom β, rad):
   squares restored, :func:`pamid.moment_of_inertia_eq12`; 0.46 kg·m² with two 1.2 kg masses).
 * T_muscles = r·(F1 − F2) (eq. 4), each F_i from eq. 3 INCLUDING its damper term −G·ẏ_i,
   with ẏ1 = r·β̇ and ẏ2 = −r·β̇ (eq. 5), cable stretch and slack muscles as in
-  :mod:`pamid._models._joint` (it is :func:`pamid._models._joint._state`, the function
+  :mod:`pamid._models._joint` (it is :func:`pamid._models._joint.joint_state`, the function
   behind :func:`pamid.muscle_state` and :func:`pamid.closed_system_torque_Nm`).
 * Valves shut (section V): each muscle was sealed at the joint angle β_s with the gauge
   pressure P_i; its air mass is then constant and its pressure follows its volume,
@@ -50,7 +50,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from .._models._cullinan import Cullinan
-from .._models._joint import JointGeometry, _state, _torque_from_state, muscle_state
+from .._models._joint import JointGeometry, joint_state, muscle_state, torque_from_state
 from .._models._volume import PamVolume, closed_system_pressure_kPa
 from .._units import ATMOSPHERE_KPA
 from ._oscillator import batch_apply, rk4_scan, sample_times
@@ -130,7 +130,7 @@ class JointArm(eqx.Module):
         self.p_atm_kPa = jnp.asarray(p_atm_kPa, float)
 
 
-def _sealed_pressures(arm: JointArm):
+def sealed_pressure_laws(arm: JointArm):
     """The two pressure laws P′_i(y_i) of the sealed muscles (contractions at the seal from
     eq. 3–5 at the seal angle and pressures, cable stretch included)."""
     seal = muscle_state(arm.muscle1, arm.muscle2, arm.geometry, arm.seal_angle_rad,
@@ -145,10 +145,10 @@ def _sealed_pressures(arm: JointArm):
 
 def _torques(arm: JointArm, laws, beta, beta_dot):
     """(T_muscles, T_gravity) in N·m at (β, β̇)."""
-    state = _state(arm.muscle1, arm.muscle2, arm.geometry, beta, laws[0], laws[1], beta_dot,
+    state = joint_state(arm.muscle1, arm.muscle2, arm.geometry, beta, laws[0], laws[1], beta_dot,
                    True)
     gravity = -arm.gravity_moment_Nm * jnp.cos(beta - arm.horizontal_angle_rad)
-    return _torque_from_state(arm.geometry, state), gravity
+    return torque_from_state(arm.geometry, state), gravity
 
 
 @eqx.filter_jit
@@ -157,13 +157,13 @@ def joint_arm_torque_Nm(arm: JointArm, beta_rad: ArrayLike, beta_dot_rad_s: Arra
 
     Broadcasts over β and β̇; the arm must then be unbatched (``vmap`` over it otherwise).
     """
-    muscles, gravity = _torques(arm, _sealed_pressures(arm), jnp.asarray(beta_rad, float),
+    muscles, gravity = _torques(arm, sealed_pressure_laws(arm), jnp.asarray(beta_rad, float),
                                 jnp.asarray(beta_dot_rad_s, float))
     return muscles + gravity
 
 
 def _equilibrium_one(arm: JointArm, lo, hi):
-    laws = _sealed_pressures(arm)
+    laws = sealed_pressure_laws(arm)
 
     def f(beta):  # net static torque; decreasing in β for a stable joint
         muscles, gravity = _torques(arm, laws, beta, 0.0)
@@ -219,7 +219,7 @@ class JointArmRun(NamedTuple):
     torque_Nm: Float[Array, "... T"]  # T_muscles (eq. 4, with the damper term)
 
 
-def _rhs(arm: JointArm, laws):
+def arm_rhs(arm: JointArm, laws):
     def rhs(y):
         muscles, gravity = _torques(arm, laws, y[0], y[1])
         return jnp.stack([y[1], (muscles + gravity) / arm.inertia_kg_m2])
@@ -230,12 +230,12 @@ def _rhs(arm: JointArm, laws):
 @eqx.filter_jit
 def _simulate(arm, angle0, rate0, n, dt, substeps):
     def one(a, b0, v0):
-        laws = _sealed_pressures(a)
-        ys = rk4_scan(_rhs(a, laws), jnp.stack([b0, v0]), dt, n, substeps)
+        laws = sealed_pressure_laws(a)
+        ys = rk4_scan(arm_rhs(a, laws), jnp.stack([b0, v0]), dt, n, substeps)
         beta, rate = ys[:, 0], ys[:, 1]
-        state = _state(a.muscle1, a.muscle2, a.geometry, beta, laws[0], laws[1], rate, True)
+        state = joint_state(a.muscle1, a.muscle2, a.geometry, beta, laws[0], laws[1], rate, True)
         return (beta, rate, laws[0](state.y1_mm), laws[1](state.y2_mm),
-                _torque_from_state(a.geometry, state))
+                torque_from_state(a.geometry, state))
 
     return batch_apply(one, arm, angle0, rate0)
 

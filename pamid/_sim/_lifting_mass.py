@@ -79,7 +79,14 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from .._models._hysteresis import hysteresis_damping
-from .._models._sarosi import TABLE_3_1_L0_MM, Sarosi, sarosi_force, sarosi_stiffness, table_3_1
+from .._models._sarosi import (
+    TABLE_3_1_L0_MM,
+    Sarosi,
+    contraction_at_force_pct,
+    sarosi_force,
+    sarosi_stiffness,
+    table_3_1,
+)
 from .._units import KPA_PER_BAR
 from ._oscillator import batch_apply, rk4_scan, sample_times
 
@@ -104,7 +111,7 @@ __all__ = [
 #: g used by default. Sárosi does not state his value; 9.81 m/s² is MATLAB/Simulink's usual.
 STANDARD_GRAVITY_M_PER_S2 = 9.81
 #: Half height of the default hysteresis loop, N per bar: the loop of pamid's bundled data
-#: set (``pamid._data._default.default_protocol``, ``hysteresis_N_per_bar``).
+#: set (``pamid._virtual._default.default_protocol``, ``hysteresis_N_per_bar``).
 DEFAULT_HYSTERESIS_N_PER_BAR = 3.0
 #: Contraction bracket (in %) searched for the static equilibrium.
 EQUILIBRIUM_BRACKET_PCT = (-10.0, 50.0)
@@ -242,10 +249,8 @@ def zeta_from_hysteresis(
 def loop_range_pct(muscle: Sarosi, pressure_kPa: ArrayLike) -> Float[Array, "..."]:
     """κ_max of the loop: where the bench sweep ends at this pressure (force down to 10 N,
     at most 25 %), as in pamid's virtual bench and its bundled data set."""
-    from .._data._virtual_bench import _sweep_end_pct
-
     p_bar = jnp.asarray(pressure_kPa, float) / KPA_PER_BAR
-    return _sweep_end_pct(muscle, p_bar, 25.0, 10.0)
+    return contraction_at_force_pct(muscle, p_bar, 25.0, 10.0)
 
 
 @eqx.filter_jit

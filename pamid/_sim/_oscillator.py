@@ -95,7 +95,7 @@ class DampedOscillator(eqx.Module):
         return self.natural_frequency_rad_s * jnp.sqrt(1.0 - self.zeta**2)
 
 
-def _cos_sinc(w2, t):
+def cos_sinc(w2, t):
     """C = cos(√w2·t) and S = sin(√w2·t)/√w2, continued to w2 ≤ 0 (cosh, sinh/√−w2).
 
     Near w2·t² = 0 a Taylor series replaces the quotient, so values and gradients are finite
@@ -133,7 +133,7 @@ def oscillator_response(
     v0 = jnp.asarray(rate0_rad_s, float)
     sigma = osc.damping_Nms_per_rad / (2.0 * osc.inertia_kg_m2)
     wn2 = osc.stiffness_Nm_per_rad / osc.inertia_kg_m2
-    c, s = _cos_sinc(wn2 - sigma**2, t)
+    c, s = cos_sinc(wn2 - sigma**2, t)
     decay = jnp.exp(-sigma * t)
     angle = osc.equilibrium_rad + decay * (u0 * c + (v0 + sigma * u0) * s)
     rate = decay * (v0 * c - (sigma * v0 + wn2 * u0) * s)
@@ -228,7 +228,7 @@ def _propagator(osc: DampedOscillator, dt_s: float):
     form of :func:`oscillator_response` (columns: response to a unit angle, to a unit rate)."""
     sigma = osc.damping_Nms_per_rad / (2.0 * osc.inertia_kg_m2)
     wn2 = osc.stiffness_Nm_per_rad / osc.inertia_kg_m2
-    c, s = _cos_sinc(wn2 - sigma**2, jnp.asarray(dt_s, float))
+    c, s = cos_sinc(wn2 - sigma**2, jnp.asarray(dt_s, float))
     e = jnp.exp(-sigma * dt_s)
     return e * (c + sigma * s), e * s, -e * wn2 * s, e * (c - sigma * s)
 

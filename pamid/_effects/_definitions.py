@@ -9,7 +9,7 @@ the force law itself) — its physical reason and source (the docstring of its b
 the injector of the virtual bench that hides it in data. :data:`STATIC_EFFECTS` is the
 registry that :class:`pamid._diagnose._static.StaticProblem` reads; adding an effect means
 adding one definition there. :data:`DECAY_EFFECTS` is the same for free decays
-(:mod:`pamid._dynamics._coulomb`).
+(:mod:`pamid._decays._coulomb`).
 
 A constant chosen over a small grid (a time constant, a softening scale) is a
 ``grid`` constant: it is chosen per muscle, once, where the baseline's residual (with the
@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from .._units import KPA_PER_BAR
-from ._residual import legendre_basis, scaled
+from ._basis import legendre_basis, scaled
 
 __all__ = [
     "DECAY_EFFECTS",
@@ -294,13 +294,13 @@ def _hysteresis() -> EffectDefinition:
     dissipates energy, so the force while contracting lies below the force while extending
     (Sárosi's lower and upper curves F_a and F_f, eq. 2.3–2.4; Chou and Hannaford 1996,
     IEEE Trans. Robot. Autom. 12(1):90–102). The half height h(p) must be ≥ 0.
-    Injector: :class:`pamid._data._virtual_effects.InjectedHysteresis` (and
+    Injector: :class:`pamid._effects._inject.InjectedHysteresis` (and
     ``IsometricProtocol.hysteresis_N_at_3_bar``).
     """
     return EffectDefinition(
         name="hysteresis", covariates=("direction",),
         constants=(Constant("h0", "N"), Constant("h1", "N/bar")),
-        injector="pamid._data._virtual_effects.InjectedHysteresis",
+        injector="pamid._effects._inject.InjectedHysteresis",
         features=lambda m, col, g: [-col("direction"), -col("direction") * m.p_bar],
         check=_hysteresis_check,
     )
@@ -312,7 +312,7 @@ def _temperature() -> EffectDefinition:
     Physical reason: the bladder's rubber stiffens or softens with temperature (entropy
     elasticity, Treloar, The Physics of Rubber Elasticity, 1975, ch. 2), changing the force
     at a given pressure and length. No sign is imposed: both occur. Injector:
-    :class:`pamid._data._virtual_effects.InjectedTemperature`.
+    :class:`pamid._effects._inject.InjectedTemperature`.
     """
     def features(m, col, g):
         dt = col("temperature_C") - m.file.temperature_mean_C
@@ -321,7 +321,7 @@ def _temperature() -> EffectDefinition:
     return EffectDefinition(
         name="temperature", covariates=("temperature_C",),
         constants=(Constant("tau0", "N/K"), Constant("tau1", "N/(bar·K)")),
-        injector="pamid._data._virtual_effects.InjectedTemperature", features=features)
+        injector="pamid._effects._inject.InjectedTemperature", features=features)
 
 
 def _drift() -> EffectDefinition:
@@ -329,7 +329,7 @@ def _drift() -> EffectDefinition:
 
     Physical reason: a strain-gauge bridge's zero moves as it warms and creeps (any load
     cell's datasheet states a zero drift per hour and per kelvin); it is additive and does
-    not depend on the load. Injector: :class:`pamid._data._virtual_effects.InjectedDrift`.
+    not depend on the load. Injector: :class:`pamid._effects._inject.InjectedDrift`.
     """
     def features(m, col, g):
         h = col("elapsed_s") / 3600.0
@@ -338,7 +338,7 @@ def _drift() -> EffectDefinition:
     return EffectDefinition(
         name="drift", covariates=("elapsed_s",),
         constants=(Constant("delta1", "N/h"), Constant("delta2", "N/h²")),
-        injector="pamid._data._virtual_effects.InjectedDrift", features=features)
+        injector="pamid._effects._inject.InjectedDrift", features=features)
 
 
 def _viscous_damping() -> EffectDefinition:
@@ -346,12 +346,12 @@ def _viscous_damping() -> EffectDefinition:
 
     Physical reason: viscous losses in the bladder and the air flow resist motion in
     proportion to speed; dissipation requires g ≥ 0. Injector:
-    :class:`pamid._data._virtual_effects.InjectedViscousDamping`.
+    :class:`pamid._effects._inject.InjectedViscousDamping`.
     """
     return EffectDefinition(
         name="viscous_damping", covariates=("speed_mm_s", "speed_pct_s"),
         constants=(Constant("g", "N·s/{x}", lower=0.0),),
-        injector="pamid._data._virtual_effects.InjectedViscousDamping",
+        injector="pamid._effects._inject.InjectedViscousDamping",
         features=lambda m, col, g: [-col(m.speed)],
         applies=lambda f: len(f.spec.columns) < 3,  # Cullinan with G has it already
     )
@@ -393,12 +393,12 @@ def _transient() -> EffectDefinition:
     covariate is the time since the last step of the moving input, within its trial
     (:func:`time_since_step`); τ is chosen over a grid of multiples of the sample interval.
     Injector: ``IsometricProtocol.transient_N_per_kPa`` / ``transient_tau_s``
-    (:mod:`pamid._data._virtual_isometric`).
+    (:mod:`pamid._virtual._isometric`).
     """
     return EffectDefinition(
         name="transient", covariates=("time_since_step_s",),
         constants=(Constant("g", "N/kPa", meaning="overshoot (> 0) or lag (< 0) per kPa"),),
-        injector="pamid._data._virtual_isometric.IsometricProtocol.transient_N_per_kPa",
+        injector="pamid._virtual._isometric.IsometricProtocol.transient_N_per_kPa",
         check=_transient_check,
         features=lambda m, col, tau: [_relaxation(m.steps, m.time_s, m.trial, tau)],
         grid=Constant("tau_s", "s", lower=0.0), grid_values=_transient_grid,
@@ -415,12 +415,12 @@ def _softening() -> EffectDefinition:
     Gilormini, "A review on the Mullins effect", Eur. Polym. J. 45:601–612, 2009). A loss
     of force: 0 ≤ s < 1; r > 0 (in repeats) is chosen over a grid. F_model is the baseline
     fit. Injector: ``IsometricProtocol.softening`` / ``softening_repeats``
-    (:mod:`pamid._data._virtual_isometric`).
+    (:mod:`pamid._virtual._isometric`).
     """
     return EffectDefinition(
         name="softening", covariates=("repeat",),
         constants=(Constant("s", "1", lower=0.0, upper=1.0, meaning="share of force lost"),),
-        injector="pamid._data._virtual_isometric.IsometricProtocol.softening",
+        injector="pamid._virtual._isometric.IsometricProtocol.softening",
         features=lambda m, col, r: [-(1.0 - np.exp(-m.frame["repeat"].to_numpy(float) / r))
                                     * m.baseline_N],
         grid=Constant("r", "repeats", lower=0.0),
@@ -455,11 +455,11 @@ def _covariate() -> EffectDefinition:
 
     Not a physical effect: it traces what the library cannot model to its covariate, so
     that an effect outside the library is still named by what it depends on. No bounds.
-    Injector: :class:`pamid._data._virtual_effects.InjectedCovariate`.
+    Injector: :class:`pamid._effects._inject.InjectedCovariate`.
     """
     return EffectDefinition(
         name="covariate", covariates=(), constants=(),
-        injector="pamid._data._virtual_effects.InjectedCovariate",
+        injector="pamid._effects._inject.InjectedCovariate",
         features=_covariate_features, family=_covariate_family)
 
 
@@ -475,11 +475,11 @@ def _compliance() -> EffectDefinition:
     Physical reason: the load cell, its mounts and any cable stretch under the force, so the
     muscle is shorter than the encoder says by c·F (a spring in series; Sárosi's rig reads
     the rod, not the muscle). A spring has c ≥ 0: a negative c would mean a rig that
-    shortens under load. Injector: :class:`pamid._data._virtual_effects.InjectedCompliance`.
+    shortens under load. Injector: :class:`pamid._effects._inject.InjectedCompliance`.
     """
     return EffectDefinition(
         name="compliance", covariates=(), constants=(Constant("c", "{x}/N", lower=0.0),),
-        injector="pamid._data._virtual_effects.InjectedCompliance",
+        injector="pamid._effects._inject.InjectedCompliance",
         transform=_compliance_transform, implicit=True,
         applies=lambda f: f.spec.contraction_column in f.spec.columns)
 
@@ -501,12 +501,12 @@ def _sensor_offset() -> EffectDefinition:
     (``../shared/data/README.md``), i.e. δ ≈ −8 kPa. |δ| must stay below
     :data:`MAX_OFFSET_SHARE` of the largest logged pressure. Identifiable only where the
     force law is not affine in p at every length (Sárosi eq. 2.1: through the a4·κ·p term).
-    Injector: ``IsometricProtocol.pressure_offset_kPa`` (:mod:`pamid._data._virtual_isometric`).
+    Injector: ``IsometricProtocol.pressure_offset_kPa`` (:mod:`pamid._virtual._isometric`).
     """
     return EffectDefinition(
         name="sensor_offset", covariates=(),
         constants=(Constant("delta_kPa", "kPa", bounds=_offset_bounds),),
-        injector="pamid._data._virtual_isometric.IsometricProtocol.pressure_offset_kPa",
+        injector="pamid._virtual._isometric.IsometricProtocol.pressure_offset_kPa",
         transform=_offset_transform,
         applies=lambda f: "pressure_kPa" in f.spec.columns)
 
@@ -529,7 +529,7 @@ def transforms() -> tuple[EffectDefinition, ...]:
 
 @dataclasses.dataclass(frozen=True)
 class DecayEffect:
-    """A candidate effect of a free-decay diagnosis (:mod:`pamid._dynamics._coulomb`):
+    """A candidate effect of a free-decay diagnosis (:mod:`pamid._decays._coulomb`):
     ``fit_name`` is its constant in the lanes' layout, ``key`` and ``constant`` how it is
     reported."""
 
@@ -553,7 +553,7 @@ DECAY_EFFECTS: tuple[DecayEffect, ...] = (
     DecayEffect(
         "coulomb_friction", "velocity_rad_s", "coulomb_shift_rad", "coulomb_Nm",
         Constant("coulomb_Nm", "N·m", lower=0.0),
-        "pamid._data._virtual_decay.simulate_decays (coulomb_Nm=)",
+        "pamid._virtual._decay.simulate_decays (coulomb_Nm=)",
         "A constant friction torque T_c·sign(β̇) (the sliding seal, the cable over the "
         "pulley): the amplitude falls linearly instead of geometrically; T_c ≥ 0 "
         "(dissipation)."),

@@ -1,6 +1,6 @@
 """The virtual bench for isometric tests, and files shaped as other labs deliver them.
 
-Sárosi moves the muscle's end at constant pressure (:mod:`pamid._data._virtual_bench`);
+Sárosi moves the muscle's end at constant pressure (:mod:`pamid._virtual._sweeps`);
 many labs do the opposite. The Agile & Adaptive Robotics Lab's isometric protocol (Portland
 State University, as documented with its published data set) clamps each muscle at a few fixed
 lengths — 0 % and 25/50/75 % of the way to its length at the largest pressure — while a
@@ -31,17 +31,16 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
+from .._effects._inject import InjectedCompliance, InjectedHysteresis, apply_effects
 from .._io import PARQUET_SUFFIXES, write_frame_atomic
-from .._models._sarosi import Sarosi, sarosi_force, table_3_1
+from .._models._sarosi import Sarosi, contraction_at_force_pct, sarosi_force, table_3_1
 from .._units import KPA_PER_BAR
-from ._virtual_bench import (
+from ._sweeps import (
     SarosiProtocol,
     _compliant_contraction,
     _read_sensor,
-    _sweep_end_pct,
     simulate_sarosi_bench,
 )
-from ._virtual_effects import InjectedCompliance, InjectedHysteresis, apply_effects
 
 __all__ = [
     "LAB_FILE_KINDS",
@@ -100,13 +99,13 @@ class IsometricProtocol:
         hysteresis_N_at_3_bar, hysteresis_form: inflate/deflate hysteresis, half height at
             3 bar: the force lies ``h(p)`` below the static curve while the pressure rises
             (and holds after rising), ``h(p)`` above it while it falls — the form of
-            :class:`~pamid._data._virtual_effects.InjectedHysteresis` with the pressure's
+            :class:`~pamid._effects._inject.InjectedHysteresis` with the pressure's
             direction as the direction.
         softening, softening_repeats: the muscle softens from trial to trial at a level: its
             force is multiplied by 1 − s·(1 − exp(−repeat/r)), repeat = 0, 1, 2, ….
         min_force_N: if given, samples whose true force falls below it are not written (a
             slack muscle: AARL's file lacks its rows of force ≤ 0); None writes every sample.
-        effects: further hidden effects (:mod:`pamid._data._virtual_effects`): drift,
+        effects: further hidden effects (:mod:`pamid._effects._inject`): drift,
             temperature, covariates, hysteresis of other forms, rig compliance (the muscle is
             shorter than the clamp says by c·F); viscous damping adds nothing at a held length.
     """
@@ -303,7 +302,8 @@ def simulate_isometric_bench(
     if protocol.level_unit == "fraction":
         p_max_bar = jnp.asarray(protocol.p_max_kPa / KPA_PER_BAR)
         free = np.asarray(
-            jax.vmap(lambda prm: _sweep_end_pct(prm, p_max_bar, _KAPPA_SEARCH_PCT, 0.0))(batched)
+            jax.vmap(lambda prm: contraction_at_force_pct(
+                prm, p_max_bar, _KAPPA_SEARCH_PCT, 0.0))(batched)
         )
         kappa_level = free[:, None] * levels[None, :]
     else:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import jax
 
-from ._virtual_bench import SarosiProtocol, simulate_sarosi_bench
+from ._sweeps import SarosiProtocol, simulate_sarosi_bench
 
 DEFAULT_SEED = 20130
 DEFAULT_FILE = "sarosi_dmsp20_400_virtual.csv"

@@ -249,7 +249,7 @@ class Extrema:
 ANGLE_RANGE_RAD = (2.0**-20, 2.0**20)
 
 
-def _angle_unit(values) -> float:
+def angle_unit(values) -> float:
     """1.0, or the power of two that :data:`ANGLE_RANGE_RAD` asks ``values`` to be divided by."""
     a = np.abs(np.asarray(values, float))
     a = a[np.isfinite(a)]
@@ -346,7 +346,7 @@ def find_extrema(time_s, angle_rad) -> Extrema:
         NoOscillationError: fewer than :data:`MIN_EXTREMA` usable extrema.
     """
     y = np.asarray(angle_rad, float)
-    unit = _angle_unit(y)
+    unit = angle_unit(y)
     return _find_extrema(np.asarray(time_s, float), y / unit, unit)._in_unit(unit, back=True)
 
 
@@ -784,7 +784,7 @@ def pooled_decrement_estimate(extrema: list[Extrema], inertia_kg_m2: float) -> D
     (:data:`ANGLE_RANGE_RAD`); the estimates come back in rad. An oscillation that grows
     (:attr:`DecrementEstimate.grows`) is not tested for amplitude dependence.
     """
-    unit = _angle_unit(np.concatenate([e.travels_rad for e in extrema]))
+    unit = angle_unit(np.concatenate([e.travels_rad for e in extrema]))
     estimate = _pooled_decrement_estimate([e._in_unit(unit) for e in extrema], inertia_kg_m2)
     return estimate._times_unit(unit)
 
@@ -965,7 +965,7 @@ def fit_decay_trajectories(
         # Fitted about the decrement's equilibrium, in a unit that keeps the deviations near
         # 1: a decay of 1e-12 rad about 1 rad, or of 1e155 rad, is fitted as one of 0.1 rad.
         centre = s.equilibrium_rad if np.isfinite(s.equilibrium_rad) else 0.0
-        unit = _angle_unit(y[sel] - centre)
+        unit = angle_unit(y[sel] - centre)
         units.append(unit)
         centres.append(centre)
         windows.append((t[sel] - te[0], (y[sel] - centre) / unit))
@@ -1114,7 +1114,7 @@ def check_inertia(inertia_kg_m2, name: str = "the moment of inertia J") -> float
 def analyze_decays(data, inertia_kg_m2: float, *, fit: bool = True) -> DecayReport:
     """Decrement estimates per trial and pooled, and (``fit=True``) the trajectory fits.
 
-    ``data`` is a :class:`pamid._dynamics._decay_data.DecayData`. A trial without a usable
+    ``data`` is a :class:`pamid._data._decay_file.DecayData`. A trial without a usable
     oscillation raises :class:`~pamid.BenchDataError` naming the file, the angle column and
     the trial's first row.
     """

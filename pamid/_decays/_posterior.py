@@ -54,17 +54,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._dynamics._decay import (
+from .._fit._batch import FitData, pack
+from .._fit._spec import ModelSpec
+from .._sampling._mcmc import McmcResult, fit_mcmc
+from .._sampling._posterior import Prior
+from .._sim._oscillator import DampedOscillator, oscillator_response, simulate_oscillator
+from ._analysis import (
     NoOscillationError,
     find_extrema,
     fit_decay_trajectories,
     pooled_decrement_estimate,
 )
-from .._fit._batch import FitData, pack
-from .._fit._spec import ModelSpec
-from .._sim._oscillator import DampedOscillator, oscillator_response, simulate_oscillator
-from ._mcmc import McmcResult, fit_mcmc
-from ._posterior import Prior
 
 __all__ = [
     "DECAY_NAMES",
@@ -243,7 +243,7 @@ def _check_prior_support(windows: DecayWindows, prior: Prior) -> None:
     """ValueError naming the trial when a recording lies outside what the prior allows: an
     angle beyond the prior's range of β, or a fit closer than the smallest noise σ (a
     recording without noise has no posterior that a sampler could explore)."""
-    from ._posterior import LOG_SIGMA_BOUNDS
+    from .._sampling._posterior import LOG_SIGMA_BOUNDS
 
     lo, hi = prior.lower[2], prior.upper[2]
     sigma_min = math.exp(LOG_SIGMA_BOUNDS[0])

@@ -16,7 +16,7 @@ Candidate effects (neither is in the sources; both are standard mechanics):
   instants of zero velocity the friction torque is constant, so each half cycle is the
   closed-form linear decay (:func:`pamid._sim._oscillator.oscillator_response`) about the
   shifted centre β_eq − sign(β̇)·u_c, u_c = T_c/k; a half cycle started from rest lasts
-  exactly π/ω_d. This is the model of :func:`pamid._data._virtual_decay.coulomb_decay`
+  exactly π/ω_d. This is the model of :func:`pamid._virtual._decay.coulomb_decay`
   (NumPy, a Python loop); :func:`coulomb_response` is the same in JAX, pure and exact (no
   smoothed sign): a ``lax.scan`` over a fixed number of half cycles computes each one's
   start time, centre and start state analytically; every sample then evaluates the closed
@@ -41,7 +41,7 @@ Candidate effects (neither is in the sources; both are standard mechanics):
 
 Fit (:func:`fit_decay_models`): for every effect set (a tuple of effect names; ``()`` is
 the baseline) and every trial, the model is fitted to the samples of the window that
-:func:`pamid._dynamics._decay.fit_decay_trajectories` uses (first to last usable extremum).
+:func:`pamid._decays._analysis.fit_decay_trajectories` uses (first to last usable extremum).
 The parameter vector has one fixed layout, ``FIT_NAMES`` = (ζ, ω_n, β(0), β̇(0), β_eq, u_c,
 r); a 0/1 mask switches the effects' constants on. All lanes, (effect set × trial × (the
 full window and each cross-validation fold)), are solved in one vmapped, jit-compiled
@@ -77,11 +77,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._diagnose._effects import DECAY_EFFECTS as _EFFECT_DEFINITIONS
+from .._effects._definitions import DECAY_EFFECTS as _EFFECT_DEFINITIONS
 from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._intervals import wald_interval
-from .._sim._oscillator import _cos_sinc
-from ._decay import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
+from .._sim._oscillator import cos_sinc
+from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
 
 __all__ = [
     "DECAY_EFFECTS",
@@ -94,7 +94,7 @@ __all__ = [
 ]
 
 #: Candidate effects of :func:`fit_decay_models` and the constant each one adds, from the
-#: registry of effects (:data:`pamid._diagnose._effects.DECAY_EFFECTS`).
+#: registry of effects (:data:`pamid._effects._definitions.DECAY_EFFECTS`).
 DECAY_EFFECTS = {e.name: e.fit_name for e in _EFFECT_DEFINITIONS}
 #: The fixed parameter layout of every lane (the last two are the effects' constants).
 FIT_NAMES = (
@@ -125,7 +125,7 @@ ATOL_RAD = 1e-12
 def _segment(sigma, wn2, x0, v0, s):
     """x(s) of ẍ + 2σẋ + ω_n²x = 0 from (x0, v0): the closed form of
     :func:`pamid._sim._oscillator.oscillator_response`, any damping."""
-    c, sn = _cos_sinc(wn2 - sigma**2, s)
+    c, sn = cos_sinc(wn2 - sigma**2, s)
     return jnp.exp(-sigma * s) * (x0 * c + (v0 + sigma * x0) * sn)
 
 
@@ -135,7 +135,7 @@ def _half_cycles(sigma, wn2, u0, v0, shift, n_half):
     Returns (starts, centres, x0s, v0s, end): arrays of length ``n_half`` and the end time
     of the last half cycle. The velocity is zero at the start of every half cycle but the
     first; the next rest comes π/ω_d later, or, for the first, at the first zero of the
-    rate (as ``_next_rest`` in :mod:`pamid._data._virtual_decay`, in a form that stays
+    rate (as ``_next_rest`` in :mod:`pamid._virtual._decay`, in a form that stays
     accurate near critical damping). Without oscillation (ω_d² ≤ 0) the first half cycle
     never ends, as in the reference.
     """
@@ -411,7 +411,7 @@ def fit_decay_models(
 
     Args:
         times, angles, extrema, starts: per trial, as for
-            :func:`pamid._dynamics._decay.fit_decay_trajectories` (which gives the start).
+            :func:`pamid._decays._analysis.fit_decay_trajectories` (which gives the start).
         inertia_kg_m2: J, for T_c = u_c·J·ω_n².
         effect_sets: tuples of names from :data:`DECAY_EFFECTS`; ``()`` is the baseline.
         n_folds: cross-validation folds (≥ 2).

@@ -11,7 +11,7 @@ Effects the static model lacks can be switched on; the default protocol has none
 sensor noise and resolution. ``hysteresis_N_per_bar`` makes the force direction dependent:
 the extending branch lies above the contracting one by 2·h·p (Sárosi's upper curve F_f and
 lower curve F_a, eq. 2.3–2.4). ``effects`` takes any of the effects of
-:mod:`pamid._data._virtual_effects` (hysteresis of several forms, temperature, load-cell
+:mod:`pamid._effects._inject` (hysteresis of several forms, temperature, load-cell
 drift, rig compliance, viscous damping, any logged covariate), alone or together; the file
 then carries what a real logger would (a temperature column, say) but never says which
 effect is in the force.
@@ -26,9 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .._models._sarosi import Sarosi, sarosi_force
+from .._effects._inject import InjectedCompliance, apply_effects
+from .._models._sarosi import Sarosi, contraction_at_force_pct, sarosi_force
 from .._units import KPA_PER_BAR
-from ._virtual_effects import InjectedCompliance, apply_effects
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,7 +53,7 @@ class SarosiProtocol:
         seconds_per_point: time between samples, for the `time_s` column.
         sweep_seconds_per_point: if given, the time between samples of each sweep in turn
             (cycled over the sweeps), so that sweeps run at different speeds.
-        effects: effects hidden in the force (:mod:`pamid._data._virtual_effects`).
+        effects: effects hidden in the force (:mod:`pamid._effects._inject`).
         pressure_noise_kPa: noise of the logged pressure (pressure sensor), standard
             deviation of one reading; the true pressure stays at the set point.
         pressure_resolution_kPa: the pressure sensor's reading step (0 for none).
@@ -99,30 +99,6 @@ class SarosiProtocol:
         for name in ("pressure_noise_kPa", "pressure_resolution_kPa", "contraction_noise_pct"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be zero or positive, got {getattr(self, name)}")
-
-
-def _sweep_end_pct(params: Sarosi, pressure_bar, kappa_max_pct, min_force_N):
-    """Contraction at which the model force falls to ``min_force_N``, capped at κ_max.
-
-    Bisection on [0, κ_max]; the force of a real muscle falls monotonically with
-    contraction at constant pressure, so the root is unique where it exists.
-    """
-
-    def f(k):
-        return sarosi_force(params, pressure_bar, k) - min_force_N
-
-    lo = jnp.zeros_like(pressure_bar)
-    hi = jnp.full_like(pressure_bar, kappa_max_pct)
-    reaches_end = f(hi) > 0
-
-    def body(_, bracket):
-        lo, hi = bracket
-        mid = 0.5 * (lo + hi)
-        above = f(mid) > 0
-        return jnp.where(above, mid, lo), jnp.where(above, hi, mid)
-
-    lo, hi = jax.lax.fori_loop(0, 80, body, (lo, hi))
-    return jnp.where(reaches_end, kappa_max_pct, lo)
 
 
 def _quantize(x, step):
@@ -173,7 +149,7 @@ def simulate_sarosi_bench(
     p_bar = np.asarray(protocol.pressures_kPa, float) / KPA_PER_BAR
     ends = np.asarray(
         jax.vmap(
-            lambda prm: _sweep_end_pct(
+            lambda prm: contraction_at_force_pct(
                 prm, jnp.asarray(p_bar), protocol.kappa_max_pct, protocol.min_force_N
             )
         )(batched)
@@ -302,7 +278,7 @@ def _compliant_contraction(batched, p_bar, kappa_read, mm_per_N, l0_mm):
     """Solve F = F_model(p, κ_read + 100·c·F/l0) for the muscle's true contraction (Newton).
 
     The rig's stretch c·F shortens the muscle below what the rod position says
-    (:class:`~pamid._data._virtual_effects.InjectedCompliance`). ``kappa_read`` has a
+    (:class:`~pamid._effects._inject.InjectedCompliance`). ``kappa_read`` has a
     leading muscle axis (M, …); ``p_bar`` (bar) broadcasts to it, ``l0_mm`` is one length
     or one per muscle.
     """
@@ -324,7 +300,7 @@ def _compliant_contraction(batched, p_bar, kappa_read, mm_per_N, l0_mm):
 
 
 def _effect_context(protocol, p_grid, kappa, ends, spp, time, direction, seed):
-    """The arrays an injected effect sees (:mod:`pamid._data._virtual_effects`)."""
+    """The arrays an injected effect sees (:mod:`pamid._effects._inject`)."""
     n_points = protocol.points_per_curve
     step_mm = ends[None, :, :, None, None] / max(n_points - 1, 1) * protocol.l0_mm / 100.0
     shape = time.shape

@@ -23,7 +23,7 @@ A column whose name starts with a known quantity (``time``, ``angle``, ``tempera
 ``pressure1``, ``pressure2``) must carry one of that quantity's units (``angle_grad`` or
 ``time_ms`` are errors, not ignored columns). Each trial needs at least
 :data:`MIN_SAMPLES` samples; whether it holds an oscillation at all is checked when it is
-analysed (:func:`pamid._dynamics._decay.analyze_decays`), with the same kind of message.
+analysed (:func:`pamid._decays._analysis.analyze_decays`), with the same kind of message.
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .._data._bench import (
+from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_to_kPa
+from ._bench import (
     _as_floats,
     _check_missing,
     _check_time_increases,
@@ -47,13 +48,12 @@ from .._data._bench import (
     _stream_bytes,
     _Table,
 )
-from .._data._bench import (
+from ._bench import (
     _check_units as _bench_check_units,
 )
-from .._data._bench import (
+from ._bench import (
     _quantity_of as _bench_quantity_of,
 )
-from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_to_kPa
 
 __all__ = ["MIN_SAMPLES", "DecayData", "load_decay"]
 

@@ -2,8 +2,8 @@
 
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
 Antagonistically Actuated Joints", eq. 3–5 (the damper term −G·ẏ of each muscle) and
-section VI (free decays of the arm). The linear-oscillator fit of :mod:`pamid._dynamics.
-_decay` reports a joint damping c (N·m·s/rad); this module fits the constant of eq. 3
+section VI (free decays of the arm). The linear-oscillator fit of :mod:`pamid._decays._analysis`
+reports a joint damping c (N·m·s/rad); this module fits the constant of eq. 3
 itself, G (N·s/mm, the same for both muscles), by least squares on the recorded angle
 THROUGH :func:`pamid.simulate_joint_arm`'s model: the sealed muscles' pressures follow
 their volumes, the arm swings under gravity, RK4 at the record's sample interval.
@@ -40,7 +40,7 @@ import numpy as np
 
 from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._intervals import wald_interval
-from .._sim._joint_sim import JointArm, _rhs, _sealed_pressures
+from .._sim._joint_sim import JointArm, arm_rhs, sealed_pressure_laws
 from .._sim._oscillator import rk4_scan
 
 __all__ = ["JOINT_FIT_NAMES", "JointDecayFit", "fit_joint_decays"]
@@ -70,7 +70,8 @@ def _with_damping(arm: JointArm, g, pressure_scale):
 
 def _simulate_angle(arm: JointArm, g, beta0, beta_dot0, pressure_scale, dt, n, substeps):
     a = _with_damping(arm, g, pressure_scale)
-    ys = rk4_scan(_rhs(a, _sealed_pressures(a)), jnp.stack([beta0, beta_dot0]), dt, n, substeps)
+    ys = rk4_scan(arm_rhs(a, sealed_pressure_laws(a)), jnp.stack([beta0, beta_dot0]), dt, n,
+                  substeps)
     return ys[:, 0]
 
 

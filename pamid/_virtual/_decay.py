@@ -20,7 +20,7 @@ next zero velocity. Without friction this is the closed form of
 The sensor: Gaussian noise (``noise_sd_rad``) is added to the true angle, and the encoder
 quantizes the sum to its step 2π/2^bits (``encoder_bits=None`` for none). Time stamps are
 exact multiples of the sample interval. Every random number comes from the ``key`` given.
-The output is a table in the decay-file format that :func:`pamid._dynamics._decay_data.load_decay`
+The output is a table in the decay-file format that :func:`pamid._data._decay_file.load_decay`
 reads: ``trial``, ``time_s``, ``angle_rad`` (or ``angle_deg``), and optionally
 ``pressure1_kPa``, ``pressure2_kPa``, ``temperature_C``.
 """

@@ -1,7 +1,7 @@
 """Effects the virtual bench can hide in its data: what real rigs add to the static model.
 
 Each class here is one physical effect that Sárosi's static force model (eq. 2.1) does not
-declare. :class:`~pamid._data._virtual_bench.SarosiProtocol` takes any number of them in its
+declare. :class:`~pamid._virtual._sweeps.SarosiProtocol` takes any number of them in its
 ``effects`` field, in any size and in more than one functional form, so that the diagnosis
 of ``pamid diagnose`` can be tested on data whose file does not mention them.
 An effect may add a column to the file (temperature, a humidity reading) as a real logger
@@ -10,7 +10,7 @@ would, but never says that the force depends on it.
 Every effect sees a context of arrays that broadcast to the shape (C, M, P, D, K) — cycle
 (1 when repeats are averaged), muscle, pressure, direction, point — in a sweep, or
 (M, T, S) — muscle, trial, sample — in an isometric test
-(:mod:`pamid._data._virtual_isometric`), and returns the force it adds, in N:
+(:mod:`pamid._virtual._isometric`), and returns the force it adds, in N:
 
 ``p_bar`` gauge pressure (bar); ``kappa_pct`` contraction (%); ``direction`` +1 contracting,
 −1 extending; ``time_s`` the time of the sample from the start of the muscle's test;

@@ -1,0 +1,134 @@
+"""What a diagnosis found: the :class:`Diagnosis` record, the residual analysis before and
+after (whiteness, dependence on each covariate) and what the final residual still depends
+on. Shared by the diagnosis of bench files and of free decays."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+
+from .._io import json_ready
+from ._residual import covariate_dependence, ljung_box, runs_test
+
+__all__ = ["Diagnosis", "analyse_residual", "build_diagnosis", "unexplained"]
+
+
+#: A covariate stays "unexplained" when the final residual depends on it with p below this
+#: and a smooth function of it explains at least UNEXPLAINED_SHARE of the residual variance
+#: (with many muscles, a structure far too small to matter is still "significant").
+UNEXPLAINED_P = 1e-3
+UNEXPLAINED_SHARE = 0.02
+#: ... and the time order is unexplained when the residual is not white (p below
+#: UNEXPLAINED_P) and its lag-1 autocorrelation is at least this large in magnitude.
+UNEXPLAINED_RHO1 = 0.1
+
+
+@dataclasses.dataclass
+class Diagnosis:
+    """What :func:`diagnose` found. :meth:`to_dict` is the ``--json`` object."""
+
+    path: str
+    kind: str
+    model: str
+    n: int
+    n_groups: int
+    rmse_before: float
+    rmse_after: float
+    max_error_before: float
+    max_error_after: float
+    cv_rmse_before: float
+    cv_rmse_after: float
+    selected: list[str]
+    dropped: list[dict]
+    candidates: list[dict]
+    steps: list[dict]
+    constants: list[dict]
+    groups: list[str]
+    residual_before: dict
+    residual_after: dict
+    unexplained: list[str]
+    table: pd.DataFrame = dataclasses.field(repr=False, default=None)
+    rows_used: int | None = None  # samples diagnosed (a subsample with ``max_rows``)
+    rows_total: int | None = None  # samples in the file
+    subsample: str | None = None  # how the subsample was drawn; None for all rows
+
+    def __post_init__(self):
+        if self.rows_used is None:
+            self.rows_used = self.n
+        if self.rows_total is None:
+            self.rows_total = self.n
+
+    def to_dict(self) -> dict:
+        return json_ready({
+            "file": self.path, "kind": self.kind, "model": self.model, "n": self.n,
+            "rows_used": self.rows_used, "rows_total": self.rows_total,
+            "subsample": self.subsample,
+            "groups": self.groups,
+            "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
+            "max_error_before": self.max_error_before, "max_error_after": self.max_error_after,
+            "cv_rmse_before": self.cv_rmse_before, "cv_rmse_after": self.cv_rmse_after,
+            "selected": self.selected, "dropped": self.dropped,
+            "candidates": self.candidates, "steps": self.steps,
+            "constants": self.constants, "residual_before": self.residual_before,
+            "residual_after": self.residual_after, "unexplained": self.unexplained,
+        })
+
+
+def _candidate_rows(rows: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "fit"} for r in rows]
+
+
+def analyse_residual(table: pd.DataFrame, column: str, covariates: list[str],
+                     group: str = "group") -> dict:
+    """Whiteness and covariate dependence of ``table[column]`` (rows in time order)."""
+    series = [g[column].to_numpy(float) for _, g in table.groupby(group, sort=False)]
+    r = table[column].to_numpy(float)
+    direction = table["direction"].to_numpy(float) if "direction" in table else None
+    deps = {}
+    for c in covariates:
+        d = None if c == "direction" else direction
+        deps[c] = covariate_dependence(r, table[c].to_numpy(float),
+                                       table[group].to_numpy(), d)
+    return {"rmse": float(np.sqrt(np.mean(r**2))), "max_abs": float(np.max(np.abs(r))),
+            "runs": runs_test(series), "ljung_box": ljung_box(series), "covariates": deps}
+
+
+def unexplained(analysis: dict, *, runs_test_applies: bool = True) -> list[str]:
+    """Covariates the final residual still depends on, and ``time_order`` when it is not
+    white. ``runs_test_applies=False`` for records read through a coarse encoder: rounding
+    to a step holds the residual's sign over the slow parts of the motion (near each turning
+    point), so the runs test rejects even for a perfect model; Ljung–Box still applies."""
+    out = [c for c, d in analysis["covariates"].items()
+           if d["p_value"] is not None and np.isfinite(d["p_value"])
+           and d["p_value"] < UNEXPLAINED_P
+           and d.get("explained_fraction", 1.0) >= UNEXPLAINED_SHARE]
+    runs_p = analysis["runs"]["p_value"]
+    rho1 = analysis["ljung_box"]["lag1_autocorrelation"]
+    not_white = analysis["ljung_box"]["p_value"] < UNEXPLAINED_P or (
+        runs_test_applies and np.isfinite(runs_p) and runs_p < UNEXPLAINED_P
+    )
+    if not_white and abs(rho1) >= UNEXPLAINED_RHO1:
+        out.append("time_order")
+    return out
+
+
+def build_diagnosis(path, kind, model, groups, result, before, after, constants, table,
+                    unexplained) -> Diagnosis:
+    """The :class:`Diagnosis` of a forward selection (``forward_select``'s result) and the
+    residual analyses before and after, for bench and decay files alike."""
+    base, final = result["baseline"], result["final"]
+    return Diagnosis(
+        path=str(path), kind=kind, model=model, n=int(np.sum(base.n)),
+        n_groups=len(groups), groups=groups,
+        rmse_before=base.rmse, rmse_after=final.rmse,
+        max_error_before=before["max_abs"], max_error_after=after["max_abs"],
+        cv_rmse_before=base.cv_rmse, cv_rmse_after=final.cv_rmse,
+        selected=result["selected"], dropped=result["dropped"],
+        candidates=_candidate_rows(result["steps"][0]["candidates"]),
+        steps=[{**{k: v for k, v in s.items() if k != "candidates"},
+                "candidates": _candidate_rows(s["candidates"])} for s in result["steps"]],
+        constants=constants, residual_before=before, residual_after=after,
+        unexplained=unexplained, table=table,
+    )
