@@ -509,3 +509,25 @@ def sarosi_statistics(theta, x, y, w):
     var_r = sse - n * r_mean**2
     corr = (var_y + cov_yr) / jnp.sqrt(var_y * (var_y + 2 * cov_yr + var_r))
     return sse, inv, corr, n, full_rank
+
+
+def sarosi_derivatives(x, y, w):
+    """For Sárosi eq. 2.1, by the written-out sums of this module: a function of θ
+    (M, 6) giving S = rᵀWr, g = JᵀWr, the Hessian H of S/2 and JᵀWJ, one pass over the
+    samples (the sums that do not depend on θ are made once, here); and one giving S only."""
+    p, k = x
+    sw = jnp.sqrt(w)
+    *fixed, _, _ = _fixed_jtj(p, k, y, w)
+
+    def derivatives(theta):
+        varying, jtr, sse, _, second = _pass(
+            theta, jnp.zeros_like(theta), p, k, y, w, sw, 0.0, 0.0, 1.0
+        )
+        jtj = _jtj(varying, fixed)
+        return sse, jtr, _hessian(jtj, second), jtj
+
+    def sse_only(theta):
+        zero = jnp.zeros_like(theta)
+        return _pass(theta, zero, p, k, y, w, sw, 0.0, 0.0, 0.0, full=False)[2]
+
+    return derivatives, sse_only

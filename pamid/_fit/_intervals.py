@@ -80,33 +80,9 @@ PROFILE_CHECK_STEP = 1e-2
 PROFILE_SSE_TOL = 2e-7
 
 
-def _sarosi_derivatives(x, y, w):
-    """For Sárosi eq. 2.1, by the written-out sums of ``_gauss_newton.py``: a function of θ
-    (M, 6) giving S = rᵀWr, g = JᵀWr, the Hessian H of S/2 and JᵀWJ, one pass over the
-    samples (the sums that do not depend on θ are made once, here); and one giving S only."""
-    from ._gauss_newton import _fixed_jtj, _hessian, _jtj, _pass
-
-    p, k = x
-    sw = jnp.sqrt(w)
-    *fixed, _, _ = _fixed_jtj(p, k, y, w)
-
-    def derivatives(theta):
-        varying, jtr, sse, _, second = _pass(
-            theta, jnp.zeros_like(theta), p, k, y, w, sw, 0.0, 0.0, 1.0
-        )
-        jtj = _jtj(varying, fixed)
-        return sse, jtr, _hessian(jtj, second), jtj
-
-    def sse_only(theta):
-        zero = jnp.zeros_like(theta)
-        return _pass(theta, zero, p, k, y, w, sw, 0.0, 0.0, 0.0, full=False)[2]
-
-    return derivatives, sse_only
-
-
 def _generic_derivatives(spec, x, y, w):
-    """The same as :func:`_sarosi_derivatives` for any model, by automatic differentiation
-    of its weighted residuals (one muscle per lane)."""
+    """The same as :func:`pamid._fit._gauss_newton.sarosi_derivatives` for any model, by
+    automatic differentiation of its weighted residuals (one muscle per lane)."""
 
     def one(theta, x, y, w):
         res = lambda th: residuals(spec, th, x, y, w)  # noqa: E731

@@ -265,18 +265,13 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
 
 
 def _sarosi_fast_path() -> FastPath:
-    from ._gauss_newton import sarosi_gauss_newton, sarosi_statistics
+    from ._gauss_newton import sarosi_derivatives, sarosi_gauss_newton, sarosi_statistics
     from ._variable_projection import sarosi_variable_projection
-
-    def profile_derivatives(x, y, w):
-        from ._intervals import _sarosi_derivatives
-
-        return _sarosi_derivatives(x, y, w)
 
     return FastPath(key="sarosi", gauss_newton=sarosi_gauss_newton,
                     statistics=sarosi_statistics,
                     variable_projection=sarosi_variable_projection,
-                    profile_derivatives=profile_derivatives)
+                    profile_derivatives=sarosi_derivatives)
 
 
 def _sarosi_start(x, y, w):
