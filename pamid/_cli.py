@@ -157,7 +157,7 @@ def _cmd_fit(args) -> int:
     if args.method == "mcmc":
         from ._commands.mcmc import run_mcmc_fit
 
-        payload, code = run_mcmc_fit(args, bench)
+        payload, code = run_mcmc_fit(args, bench, bounds)
         if args.json:
             print(json.dumps(payload))
         return code

@@ -273,3 +273,44 @@ def test_martens_map(tmp_path, registered, capsys):
     by = {m["model"]: m for m in mu["models"]}
     assert by["sarosi"]["n"] == 40 and by["sarosi"]["cv_rmse_N"] < by["chou_hannaford"][
         "cv_rmse_N"]
+
+
+def test_bounds_per_model_and_for_every_model(trial_bench, specs):
+    from pamid._commands._model import parse_bounds_per_model
+
+    chosen = [specs["interaction"], specs["plane"]]
+    bounds = parse_bounds_per_model("interaction.c3=0:0.01, c1=:1.1", chosen)
+    # c3 only for the model named; c1 for both models that have it; the rest their own.
+    assert bounds["interaction"] == ((-np.inf, -np.inf, -np.inf, 0.0),
+                                     (np.inf, 1.1, np.inf, 0.01))
+    assert bounds["plane"] == ((-np.inf,) * 3, (np.inf, 1.1, np.inf))
+    result = compare_models(trial_bench, chosen, bounds=bounds)
+    inter = result.models[0].fit
+    # The data hold c3 = 0.02 (both muscles) and c1 = 1.2 (A) / 0.96 (B): the fits stop on
+    # the bounds the data would cross, and say so.
+    assert np.allclose(np.asarray(inter.theta)[:, 3], 0.01)
+    assert np.asarray(inter.theta)[0, 1] <= 1.1 + 1e-12
+    assert [inter.status_of(i) for i in range(2)] == ["at_bound", "at_bound"]
+    assert np.asarray(result.models[1].fit.theta)[:, 1].max() <= 1.1 + 1e-12
+
+
+@pytest.mark.parametrize("text, match", [
+    ("nosuch=0:1", "no compared model has a constant 'nosuch'"),
+    ("cullinan.A=0:1", "names a model not compared"),
+    ("interaction.c3=1:0", "must be below the upper bound"),
+])
+def test_cli_bad_bounds_is_one_line_exit_2(trial_csv, registered, capsys, text, match):
+    assert main(["compare", str(trial_csv), "--models", "interaction,plane",
+                 "--bounds", text]) == 2
+    err = capsys.readouterr().err
+    lines = [s for s in err.splitlines() if s.strip()]
+    assert len(lines) == 1 and match in lines[0] and "Traceback" not in err
+
+
+def test_cli_bounds_reach_the_fits(trial_csv, registered, capsys):
+    assert main(["compare", str(trial_csv), "--models", "interaction,plane",
+                 "--bounds", "interaction.c3=0:0.01", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    for mu in d["muscles"]:
+        status = {m["model"]: m["status"] for m in mu["models"]}
+        assert status == {"interaction": "at_bound", "plane": "converged"}

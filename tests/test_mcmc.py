@@ -546,3 +546,23 @@ def test_bench_input_keeps_muscle_names(tmp_path, theta31):
     assert r.muscles == ("left",) and r.converged.all()
     assert [m["muscle"] for m in r.to_dict()["muscles"]] == ["left"]
     assert isinstance(r.params(0), pamid.Sarosi)
+
+
+def test_bounds_restrict_the_start_and_the_posterior(sarosi_data, theta31):
+    # a3's upper bound at 1.5 × its true value (a3 < 0: below it): the data would cross it.
+    cap = 1.5 * theta31[2]
+    lower = (-np.inf, -np.inf, -3.0, -np.inf, -np.inf, -np.inf)
+    upper = (np.inf, np.inf, cap, np.inf, np.inf, np.inf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", McmcBudgetWarning)
+        r = fit_mcmc(sarosi_data, key=jax.random.key(8), max_steps=1000, progress=False,
+                     bounds=(lower, upper))
+    assert r.ls.theta[0, 2] == pytest.approx(cap)  # the start: fitted within the bounds
+    assert r.ls.status_of(0) == "at_bound"
+    a3 = r.samples[0, :, :, 2]
+    assert a3.max() < cap and a3.min() > -3.0  # every draw inside (the support is open)
+    prior = r.to_dict()["prior"]["a3"]
+    assert f"restricted to (-3, {cap:g}) by the bounds" in prior
+    with pytest.raises(ValueError, match="a3: .* lies outside the support of its prior"):
+        fit_mcmc(sarosi_data, key=jax.random.key(8), progress=False,
+                 bounds=(lower[:2] + (-9.0,) + lower[3:], upper[:2] + (-8.0,) + upper[3:]))

@@ -48,6 +48,10 @@ def register(subparsers) -> None:
     cmp.add_argument("--out", help="folder for compare.json and PNG plots")
     cmp.add_argument("--max-plots", type=int, default=6,
                      help="muscles to plot against every model (default 6)")
+    cmp.add_argument("--bounds", default=None, metavar="[MODEL.]NAME=LOW:HIGH,...",
+                     help="physical bounds of constants in place of the models' own, e.g. "
+                          "'sarosi.a3=-3:0' for one model, or 'a3=-3:0' for every compared "
+                          "model with a constant a3 (an empty side: no bound there)")
     from ._reading import add_reading_arguments
 
     add_reading_arguments(cmp)
@@ -68,7 +72,7 @@ def cmd_compare(args) -> int:
     from .._fit._compare import compare_models
     from .._fit._spec import MODELS
     from .._io import final_place, write_text_atomic
-    from ._model import check_model
+    from ._model import check_model, parse_bounds_per_model
     from ._reading import reading_options
 
     t0 = time.perf_counter()
@@ -81,11 +85,13 @@ def cmd_compare(args) -> int:
     if args.max_plots < 0:
         raise ValueError("--max-plots must be 0 or more")
     models = _model_list(args.models)
-    for ref in models if models is not None else list(MODELS):
-        check_model(ref)  # a typo or a broken model file: one line, before reading data
+    specs = [check_model(ref)  # a typo or a broken model file: one line, before reading data
+             for ref in (models if models is not None else list(MODELS))]
+    bounds = parse_bounds_per_model(args.bounds, specs)
     bench = load_bench(args.data, **reading_options(args))
     progress(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}")
-    result = compare_models(bench, models, n_folds=args.folds, progress=progress)
+    result = compare_models(bench, models, n_folds=args.folds, bounds=bounds,
+                            progress=progress)
     for name, why in result.skipped:
         progress(f"skipped {name}: {why}")
     payload = result.to_dict()

@@ -17,16 +17,8 @@ import sys
 import time
 from pathlib import Path
 
+from ._common import stage
 from .mcmc_options import add_mcmc_arguments  # noqa: F401 (its home before)
-
-
-def _stage(message: str, quiet: bool) -> None:
-    if not quiet:
-        print(f"[pamid] {message}", file=sys.stderr, flush=True)
-
-
-def _safe(name) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name))
 
 
 def format_mcmc_table(result) -> str:
@@ -75,11 +67,12 @@ def format_mcmc_table(result) -> str:
     return "\n".join(lines)
 
 
-def run_mcmc_fit(args, bench) -> tuple[dict, int]:
+def run_mcmc_fit(args, bench, bounds=None) -> tuple[dict, int]:
     """Sample the posterior for every muscle of ``bench``; returns (payload, exit code).
 
     ``args`` carries the ``fit`` options (model, json, out, seed, max_plots, solver,
-    intervals, data) and those of :func:`add_mcmc_arguments`. Prints the table on stdout
+    intervals, data) and those of :func:`add_mcmc_arguments`; ``bounds``: ``--bounds`` as
+    :func:`pamid._commands._model.parse_bounds` reads it. Prints the table on stdout
     unless ``args.json``; the caller prints the JSON payload.
     """
     import jax
@@ -93,8 +86,8 @@ def run_mcmc_fit(args, bench) -> tuple[dict, int]:
                       if s.strip())
     ls_intervals = tuple(k for k in requested if k in ("wald", "profile")) or ("wald",)
     if "bootstrap" in requested or getattr(args, "bootstrap", 0):
-        _stage("the bootstrap is not run with --method mcmc (the posterior replaces it)", quiet)
-    _stage(f"sampling the posterior ({args.likelihood} likelihood, {args.walkers} walkers, "
+        stage("the bootstrap is not run with --method mcmc (the posterior replaces it)", quiet)
+    stage(f"sampling the posterior ({args.likelihood} likelihood, {args.walkers} walkers, "
            f"up to {args.max_steps} steps, sampler {args.sampler}; least-squares start and "
            f"intervals: {', '.join(ls_intervals)})", quiet)
     result = fit_mcmc(
@@ -110,6 +103,7 @@ def run_mcmc_fit(args, bench) -> tuple[dict, int]:
         progress=(not quiet) and sys.stderr.isatty(),
         solver=getattr(args, "solver", "gauss-newton"),
         ls_intervals=ls_intervals,
+        bounds=bounds,
     )
     payload = result.to_dict()
     payload["source"] = str(getattr(args, "data", bench.path))
@@ -117,7 +111,7 @@ def run_mcmc_fit(args, bench) -> tuple[dict, int]:
     if getattr(args, "out", None):
         out = Path(args.out)
         n_files = min(getattr(args, "max_plots", 6), result.n_muscles)
-        _stage(f"writing NetCDF and plots for {n_files} of {result.n_muscles} muscle(s) "
+        stage(f"writing NetCDF and plots for {n_files} of {result.n_muscles} muscle(s) "
                f"to {final_place(out)}", quiet)
         payload["netcdf"] = result.save_netcdf(out, muscles=range(n_files))
         payload["plots"] = _write_plots(result, bench, out, n_files)

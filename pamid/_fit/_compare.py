@@ -266,14 +266,15 @@ def _predict_lanes(spec: ModelSpec, theta, x) -> np.ndarray:
 
 
 def fit_with_folds(bench: BenchData, spec: ModelSpec, plan: FoldPlan, *,
-                   solver: str = "gauss-newton") -> ModelComparison:
-    """One model: all muscles on all data and on every fold, in one batched fit."""
+                   solver: str = "gauss-newton", bounds=None) -> ModelComparison:
+    """One model: all muscles on all data and on every fold, in one batched fit (within
+    ``bounds``, as :func:`pamid.fit_least_squares` takes them, on every lane)."""
     data = bench_to_fit_data(bench, spec, curves=False)
     m, n = data.y.shape
     reps = 1 + plan.max_folds
     lanes = fold_lanes(data, plan)
     names = tuple(mu if bench.has_muscle_column else None for mu in bench.muscles)
-    lane_fit = fit_least_squares(lanes, spec, solver=solver, intervals=("wald",),
+    lane_fit = fit_least_squares(lanes, spec, solver=solver, intervals=("wald",), bounds=bounds,
                                  muscles=tuple(np.repeat(np.array(names, dtype=object), reps)))
     first = np.arange(m) * reps
     fit = _lanes_of(lane_fit, first, names)
@@ -328,6 +329,7 @@ def _missing_input(spec: ModelSpec, bench: BenchData) -> str | None:
 
 def compare_models(bench: BenchData, models: Sequence | None = None, *,
                    n_folds: int = N_FOLDS, solver: str = "gauss-newton",
+                   bounds: dict[str, tuple] | None = None,
                    progress: Callable[[str], None] | None = None) -> Comparison:
     """Fit every model to every muscle of ``bench`` and rank them per muscle (module text).
 
@@ -340,6 +342,9 @@ def compare_models(bench: BenchData, models: Sequence | None = None, *,
             is skipped and listed in ``Comparison.skipped``.
         n_folds: most cross-validation folds per muscle (at least 2).
         solver: the least-squares solver (:func:`~pamid.fit_least_squares`).
+        bounds: {model name: (lower, upper)} in place of those models' own physical bounds
+            (as :func:`~pamid.fit_least_squares` takes them), for the fits to all data and
+            to every fold alike.
         progress: called with a line of text before each model's fit.
     """
     explicit = models is not None
@@ -368,7 +373,8 @@ def compare_models(bench: BenchData, models: Sequence | None = None, *,
         if progress is not None:
             progress(f"model {k}/{len(specs)}: {spec.name} ({spec.n_params} constants), "
                      f"{len(bench.muscles)} muscle(s) × (all data + {plan.max_folds} folds)")
-        done.append(fit_with_folds(bench, spec, plan, solver=solver))
+        done.append(fit_with_folds(bench, spec, plan, solver=solver,
+                                   bounds=(bounds or {}).get(spec.name)))
     names = tuple(mu if bench.has_muscle_column else None for mu in bench.muscles)
     return Comparison(muscles=names, models=tuple(done), plan=plan, skipped=tuple(skipped),
                       source=str(bench.path))

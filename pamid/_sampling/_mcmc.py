@@ -62,7 +62,7 @@ from .._fit._batch import FitData
 from .._fit._spec import ModelSpec, get_model
 from . import _posterior
 from ._options import SAMPLERS
-from ._posterior import DEFAULT_NU, LIKELIHOODS, Prior, default_prior
+from ._posterior import DEFAULT_NU, LIKELIHOODS, Prior, default_prior, restricted_prior
 
 AUTO_SAMPLER = "stacked"  # measured faster at M = 1 … 1000 (benchmarks/mcmc_batch.py)
 STRETCH_A = 2.0
@@ -506,12 +506,25 @@ class McmcResult:
 # The entry point.
 
 
+def _inside_support(theta: np.ndarray, prior: Prior) -> np.ndarray:
+    """``theta`` (M, p) with the constants that lie on a bound of the prior's open support
+    (a least-squares fit within bounds stops there) moved inside by 1e-6 of the support's
+    width (of the constant's magnitude, at least 1, for a half-open support)."""
+    lo, hi = np.asarray(prior.lower, np.float64), np.asarray(prior.upper, np.float64)
+    with np.errstate(invalid="ignore"):
+        span = np.where(np.isfinite(hi - lo), hi - lo, np.maximum(np.abs(theta), 1.0))
+    step = 1e-6 * span
+    theta = np.where(np.isfinite(lo) & (np.abs(theta - lo) <= step), lo + step, theta)
+    return np.where(np.isfinite(hi) & (np.abs(hi - theta) <= step), hi - step, theta)
+
+
 def _initial_ball(key, ls: FitResult, prior: Prior, log_prob_1, data, n_walkers, scale):
     """Walkers around the least-squares optimum: (θ, log s) + scale·(se, 1/√(2·dof))·N(0, 1),
     redrawn where the log-posterior is not finite."""
     m, p = ls.theta.shape
+    theta = _inside_support(np.asarray(ls.theta, np.float64), prior)
     s = np.sqrt(ls.sse / np.maximum(ls.dof, 1))
-    centre = np.concatenate([ls.theta, np.log(np.maximum(s, 1e-5))[:, None]], axis=1)
+    centre = np.concatenate([theta, np.log(np.maximum(s, 1e-5))[:, None]], axis=1)
     se = np.where(np.isfinite(ls.se) & (ls.se > 0), ls.se,
                   1e-3 * np.maximum(np.abs(ls.theta), 1e-3))
     width = scale * np.concatenate([se, 1.0 / np.sqrt(2.0 * np.maximum(ls.dof, 1))[:, None]],
@@ -523,7 +536,7 @@ def _initial_ball(key, ls: FitResult, prior: Prior, log_prob_1, data, n_walkers,
             f"muscle {ls.muscles[i] if ls.muscles[i] is not None else i}: the least-squares "
             "fit that starts the walkers gave non-finite constants; check the data (too few "
             "points or pressures for the model?)")
-    inside = np.asarray(prior.inside(ls.theta))
+    inside = np.asarray(prior.inside(theta))
     if not inside.all():
         i = int(np.flatnonzero(~inside)[0])
         values = ", ".join(f"{n} = {v:.6g}" for n, v in zip(prior.names, ls.theta[i]))
@@ -587,6 +600,7 @@ def fit_mcmc(
     solver: str = "gauss-newton",
     ls_intervals: tuple[str, ...] = ("wald",),
     muscles: tuple[str | None, ...] | None = None,
+    bounds=None,
 ) -> McmcResult:
     """Sample the posterior of a model's constants and noise σ, for every muscle of ``data``.
 
@@ -611,6 +625,10 @@ def fit_mcmc(
         ball_scale: radius of the starting ball in Wald standard errors.
         solver, ls_intervals: passed to :func:`pamid.fit_least_squares` for the start (and
             for the side-by-side intervals: add "profile" to get profile intervals too).
+        bounds: optional (lower, upper) of the constants, as :func:`pamid.fit_least_squares`
+            takes them: the least-squares start is fitted within them, and the posterior is
+            restricted to them (the prior's support intersected with the bounds; the JSON's
+            prior says so).
     """
     import time
 
@@ -618,6 +636,8 @@ def fit_mcmc(
     frame = data.frame if isinstance(data, BenchData) else None
     spec = get_model(model, frame)
     prior = default_prior(spec) if prior is None else prior
+    if bounds is not None:
+        prior = restricted_prior(prior, bounds)
     ndim = spec.n_params + 1
     _validate(n_walkers, ndim, thin, max_steps, min_steps, likelihood, sampler, nu)
     if not 0.0 <= de_fraction <= 1.0:
@@ -631,7 +651,8 @@ def fit_mcmc(
     if progress is None:
         progress = sys.stderr.isatty()
 
-    ls = fit_least_squares(data, spec, solver=solver, intervals=ls_intervals, muscles=names)
+    ls = fit_least_squares(data, spec, solver=solver, intervals=ls_intervals, muscles=names,
+                           bounds=bounds)
     log_prob_1 = _log_prob(spec, prior, likelihood, float(nu))
     k_ball, k_run, k_pred = jax.random.split(key, 3)
     start = _initial_ball(k_ball, ls, prior, log_prob_1, data, n_walkers, ball_scale)

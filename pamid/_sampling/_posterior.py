@@ -218,6 +218,26 @@ def model_prior(spec: ModelSpec) -> Prior:
                  lower=tuple(lo), upper=tuple(hi), notes=tuple(notes))
 
 
+def restricted_prior(prior: Prior, bounds) -> Prior:
+    """``prior`` with each constant's support intersected with ``bounds`` = (lower, upper)
+    (the ``--bounds`` of a fit); the note of a constant whose support narrowed says so. A
+    ValueError names a constant whose support and bounds do not overlap."""
+    lower, upper = (tuple(float(v) for v in side) for side in bounds)
+    lo, hi, notes = [], [], []
+    for j, name in enumerate(prior.names):
+        a, b = max(prior.lower[j], lower[j]), min(prior.upper[j], upper[j])
+        if not a < b:
+            raise ValueError(f"--bounds: {name}: ({lower[j]:g}, {upper[j]:g}) lies outside the "
+                             f"support of its prior ({prior.lower[j]:g}, {prior.upper[j]:g})")
+        note = prior.notes[j] if prior.notes else ""
+        if (a, b) != (prior.lower[j], prior.upper[j]):
+            note = (note + "; " if note else "") + f"restricted to ({a:g}, {b:g}) by the bounds"
+        lo.append(a)
+        hi.append(b)
+        notes.append(note)
+    return dataclasses.replace(prior, lower=tuple(lo), upper=tuple(hi), notes=tuple(notes))
+
+
 def log_prior(prior: Prior, theta, log_sigma):
     """Log prior density (up to a constant) of the constants and of log σ; −inf outside."""
     theta = jnp.asarray(theta)
