@@ -35,10 +35,10 @@ CHILD = r"""
 import json, resource, sys, time, warnings
 import pandas as pd
 import pamid
-import pamid._data._bench as bench
+import pamid._data._csv as csv_reader
 mode, path = sys.argv[1], sys.argv[2]
 if mode == "slow":
-    bench._FAST_CSV = False
+    csv_reader._FAST_CSV = False
 def rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 def current_mb():
@@ -67,7 +67,7 @@ def write_csv(n_muscles: int, path: Path, seed: int = 1) -> None:
     import pamid
 
     z = np.random.default_rng(seed).standard_normal((n_muscles, 6))
-    thetas = np.asarray(pamid.table_3_1().to_vector(), dtype=float) * (1.0 + 0.03 * z)
+    thetas = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float) * (1.0 + 0.03 * z)
     frame = pamid.simulate_sarosi_bench(
         jax.random.key(seed),
         pamid.Sarosi.from_vector(thetas),

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pamid._data import _bench
+from pamid._data import _csv
 from pamid._data._bench import BenchData, CensoredRowsWarning, load_bench
 from pamid._errors import BenchDataError
 from pamid._io import (
@@ -654,15 +654,15 @@ def load_fast_and_slow(monkeypatch, path, **kwargs) -> tuple[BenchData, BenchDat
         used.append(table is not None)
         return table
 
-    real = _bench._read_csv_fast
+    real = _csv._read_csv_fast
     with monkeypatch.context() as patch:
-        patch.setattr(_bench, "_read_csv_fast", spy)
+        patch.setattr(_csv, "_read_csv_fast", spy)
         with warnings.catch_warnings(record=True) as fast_warnings:
             warnings.simplefilter("always")
             fast = load_bench(path, **kwargs)
     assert used == [True], "the fast reader did not take the file"
     with monkeypatch.context() as patch:
-        patch.setattr(_bench, "_FAST_CSV", False)
+        patch.setattr(_csv, "_FAST_CSV", False)
         with warnings.catch_warnings(record=True) as slow_warnings:
             warnings.simplefilter("always")
             slow = load_bench(path, **kwargs)
@@ -689,7 +689,7 @@ def assert_same_bench(a: BenchData, b: BenchData) -> None:
 
 def slow_error(monkeypatch, path, **kwargs) -> BenchDataError:
     with monkeypatch.context() as patch:
-        patch.setattr(_bench, "_FAST_CSV", False)
+        patch.setattr(_csv, "_FAST_CSV", False)
         with pytest.raises(BenchDataError) as info:
             load_bench(path, **kwargs)
     return info.value
@@ -811,7 +811,7 @@ def test_fast_reader_with_l0_argument(tmp_path, monkeypatch):
 )
 def test_files_the_fast_reader_leaves_to_the_slow_reader(tmp_path, monkeypatch, text):
     path = write(tmp_path, text)
-    assert _bench._read_csv_fast(path, str(path)) is None
+    assert _csv._read_csv_fast(path, str(path)) is None
     try:
         data = load_bench(path)
     except BenchDataError as err:
@@ -819,7 +819,7 @@ def test_files_the_fast_reader_leaves_to_the_slow_reader(tmp_path, monkeypatch, 
         assert (str(err), err.row, err.line) == (str(slow), slow.row, slow.line)
     else:
         with monkeypatch.context() as patch:
-            patch.setattr(_bench, "_FAST_CSV", False)
+            patch.setattr(_csv, "_FAST_CSV", False)
             assert_same_bench(data, load_bench(path))
 
 
@@ -828,7 +828,7 @@ def test_latin1_file_is_left_to_the_slow_reader(tmp_path, monkeypatch):
     path.write_bytes(
         "muscle,pressure_kPa,contraction_pct,force_N\nMüller,1,5,10\n".encode("latin-1")
     )
-    assert _bench._read_csv_fast(path, str(path)) is None
+    assert _csv._read_csv_fast(path, str(path)) is None
     assert load_bench(path).muscles == ("Müller",)
 
 
@@ -950,7 +950,7 @@ def test_plain_numbers_read_as_python_reads_them():
     cells += ["2.4703282292062328e-324", "1.7976931348623158e308", "1.7976931348623159e308"]
     taken = 0
     for cell in cells:
-        values = _bench._plain_numbers(pa.chunked_array([pa.array([cell], pa.string())]))
+        values = _csv._plain_numbers(pa.chunked_array([pa.array([cell], pa.string())]))
         if values is None:
             continue
         taken += 1
@@ -960,8 +960,8 @@ def test_plain_numbers_read_as_python_reads_them():
     assert taken > 3_000
     # one column, several chunks
     column = pa.chunked_array([pa.array(["1", "2.5"]), pa.array(["-3e2"])])
-    assert _bench._plain_numbers(column).tolist() == [1.0, 2.5, -300.0]
-    assert _bench._plain_numbers(pa.chunked_array([pa.array(["1", " 2"])])) is None
+    assert _csv._plain_numbers(column).tolist() == [1.0, 2.5, -300.0]
+    assert _csv._plain_numbers(pa.chunked_array([pa.array(["1", " 2"])])) is None
 
 
 # ----------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """Bench files as real labs write them: trials, blank cells, semicolons and decimal commas,
 tabs, spreadsheets, headers with units in brackets, and column mappings (pamid._data._bench,
-pamid._data._names, pamid._data._spreadsheet, pamid._commands._reading)."""
+pamid._data._csv, pamid._data._names, pamid._data._spreadsheet, pamid._commands._reading)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 from test_bench_data import csv_rows, load_fast_and_slow, raises, slow_error, write
 
-from pamid._data import _bench
+from pamid._data import _cells, _csv
 from pamid._data._bench import MissingValuesWarning, load_bench
 from pamid._errors import BenchDataError
 
@@ -333,7 +333,7 @@ def test_bad_reading_options(tmp_path, kwargs, match):
 def test_header_styles(tmp_path, headers, canonical):
     from pamid._data._names import canonical_names
 
-    assert canonical_names(headers.split(","), _bench.QUANTITY_UNITS) == canonical.split(",")
+    assert canonical_names(headers.split(","), _cells.QUANTITY_UNITS) == canonical.split(",")
     cells = {"muscle": "A", "length_mm": "240", "l0_mm": "250", "force_N": "12.5"}
     row = ",".join(cells.get(name, "1") for name in canonical.split(","))
     data = load_bench(write(tmp_path, f"{headers}\n{row}\n"))
@@ -541,7 +541,7 @@ def test_cli_fit_reads_a_german_excel_csv(tmp_path, pamid_cli):
     import pamid
 
     frame = pamid.simulate_sarosi_bench(
-        jax.random.key(3), pamid.table_3_1(),
+        jax.random.key(3), pamid.sarosi.table_3_1(),
         pamid.SarosiProtocol(min_force_N=10.0, pressures_kPa=(200.0, 400.0, 600.0)),
     )
     german = pd.DataFrame({"Druck": frame["pressure_kPa"] / 100.0,
@@ -591,6 +591,6 @@ def test_cli_diagnose_passes_the_reading_options(tmp_path, pamid_cli):
 
 def test_fast_reader_reads_semicolon_files(tmp_path):
     path = write(tmp_path, EXCEL_DE)
-    table = _bench._read_csv_fast(path, str(path))
+    table = _csv._read_csv_fast(path, str(path))
     assert table is not None and table.n_rows == 3
-    assert _bench._read_csv_fast(write(tmp_path, EXCEL_DE.replace("A;", '"A";')), "q") is None
+    assert _csv._read_csv_fast(write(tmp_path, EXCEL_DE.replace("A;", '"A";')), "q") is None

@@ -23,7 +23,7 @@ import pytest
 
 import pamid
 from pamid import BenchDataError, load_bench, load_decay
-from pamid._data import _bench
+from pamid._data import _csv, _streams
 
 # Quoted headers and labels (as spreadsheets export them): the fast reader passes such a
 # file on to the cell-by-cell reader, which must see the same bytes.
@@ -93,14 +93,14 @@ def test_quoted_csv_through_a_pipe_loads_as_the_file_does(pipe, tmp_path):
 
 def test_plain_csv_through_a_pipe_takes_the_fast_reader(pipe, monkeypatch, tmp_path):
     used = []
-    real = _bench._read_csv_fast
+    real = _csv._read_csv_fast
 
     def spy(path, shown, **options):
         table = real(path, shown, **options)
         used.append(table is not None)
         return table
 
-    monkeypatch.setattr(_bench, "_read_csv_fast", spy)
+    monkeypatch.setattr(_csv, "_read_csv_fast", spy)
     path = tmp_path / "p.csv"
     path.write_text(PLAIN)
     from_pipe = load_bench(pipe(PLAIN))
@@ -118,7 +118,7 @@ def test_bad_cell_through_a_pipe_gives_the_real_message(pipe):
 
 
 def test_pipe_whose_writer_is_slow_is_waited_for(pipe, monkeypatch):
-    monkeypatch.setattr(_bench, "STREAM_TIMEOUT_S", 20.0)
+    monkeypatch.setattr(_streams, "STREAM_TIMEOUT_S", 20.0)
     assert load_bench(pipe(QUOTED, delay_s=0.3)).muscles == ("A", "B")
 
 
@@ -130,7 +130,7 @@ def test_empty_pipe_says_so(pipe):
 def test_fifo_without_writer_gives_up_with_a_message(tmp_path, monkeypatch):
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)
-    monkeypatch.setattr(_bench, "STREAM_TIMEOUT_S", 0.3)
+    monkeypatch.setattr(_streams, "STREAM_TIMEOUT_S", 0.3)
     with pytest.raises(BenchDataError, match=r"fifo.csv: no data arrived within 0.3 s \(a pipe "
                                              r"or FIFO with no writer\?\)"):
         load_bench(fifo)
@@ -159,15 +159,15 @@ def test_cli_fifo_without_writer_exits_2_with_one_line(tmp_path, monkeypatch, ca
 
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)
-    monkeypatch.setattr(_bench, "STREAM_TIMEOUT_S", 0.3)
+    monkeypatch.setattr(_streams, "STREAM_TIMEOUT_S", 0.3)
     reads = []
-    real = _bench._read_stream
+    real = _streams._read_stream
 
     def spy(*args):
         reads.append(args[0])
         return real(*args)
 
-    monkeypatch.setattr(_bench, "_read_stream", spy)
+    monkeypatch.setattr(_streams, "_read_stream", spy)
     # diagnose peeks at the header first (decay file or bench file?), then loads: the FIFO
     # is waited for once, and the one error reported.
     for command in (["fit", str(fifo), "--json"], ["diagnose", str(fifo), "--json"]):
@@ -197,6 +197,60 @@ def test_decay_file_through_a_pipe(pipe, tmp_path):
     path.write_text(decay_csv())
     pd.testing.assert_frame_equal(load_decay(pipe(decay_csv())).frame, load_decay(path).frame,
                                   check_exact=True)
+
+
+def test_one_reader_registry_decides_every_format():
+    from pamid._data._readers import CSV, FORMATS, READERS, reader_for
+
+    csv, parquet, sheets = FORMATS
+    assert csv is CSV
+    assert {suffix: reader.name for suffix, reader in READERS.items()} == {
+        ".csv": "CSV files", ".tsv": "CSV files", ".txt": "CSV files",
+        ".parquet": "Parquet files", ".pq": "Parquet files",
+        ".xlsx": "spreadsheets", ".xlsm": "spreadsheets", ".xlsb": "spreadsheets",
+        ".xls": "spreadsheets", ".ods": "spreadsheets",
+    }
+    # A regular file (no bytes given) by its extension alone; an unknown one is CSV.
+    assert reader_for(Path("a.PQ"), None) is parquet
+    assert reader_for(Path("a.ODS"), None) is sheets
+    assert reader_for(Path("a.dat"), None) is csv
+    assert reader_for(Path("a"), None) is csv
+    # A stream by its first bytes, unless its name has a binary format's extension.
+    assert reader_for(Path("/dev/fd/5"), b"PAR1\x15\x04") is parquet
+    assert reader_for(Path("/dev/fd/5"), b"PK\x03\x04\x14\x00") is sheets
+    assert reader_for(Path("/dev/fd/5"), b"\xd0\xcf\x11\xe0\xa1\xb1") is sheets
+    assert reader_for(Path("fifo.csv"), b"PAR1\x15\x04") is parquet
+    assert reader_for(Path("/dev/fd/5"), b"time_s,angle_rad\n") is csv
+    assert reader_for(Path("f.xlsx"), b"PAR1\x15\x04") is sheets
+    assert [r.name for r in FORMATS if "decimal" in r.options] == ["CSV files", "spreadsheets"]
+
+
+@pytest.mark.parametrize("kind", ["parquet", "xlsx", "parquet through a pipe"])
+def test_decay_file_in_every_format_of_the_registry(kind, pipe, tmp_path):
+    from pamid._data._readers import column_names
+    from pamid._diagnose._api import _is_decay_file
+
+    csv_path = tmp_path / "d.csv"
+    csv_path.write_text(decay_csv())
+    expected = load_decay(csv_path).frame
+    frame = pd.read_csv(csv_path)
+    if kind == "xlsx":
+        from openpyxl import Workbook
+
+        path = tmp_path / "d.xlsx"
+        workbook = Workbook()
+        workbook.active.append(list(frame.columns))
+        for row in frame.itertuples(index=False):
+            workbook.active.append([float(v) for v in row])
+        workbook.save(path)
+    else:
+        path = tmp_path / "d.parquet"
+        frame.to_parquet(path, index=False)
+        if kind == "parquet through a pipe":
+            path = pipe(path.read_bytes())
+    assert column_names(path) == ["time_s", "angle_rad"]  # a pipe's bytes kept for the loader
+    assert _is_decay_file(Path(path))
+    pd.testing.assert_frame_equal(load_decay(path).frame, expected, check_exact=True)
 
 
 def test_parquet_through_a_pipe_is_recognised_by_its_bytes(pipe, tmp_path):
@@ -284,7 +338,7 @@ def test_wide_file_readers_agree(tmp_path, monkeypatch):
     """The fast reader checks wide files in blocks of columns; a text column, blanks in an
     optional column and a bad cell in a required one read as the cell-by-cell reader reads
     them."""
-    monkeypatch.setattr(_bench, "_BLOCK_CELLS", 64)  # blocks of 6 columns of 10 rows
+    monkeypatch.setattr(_csv, "_BLOCK_CELLS", 64)  # blocks of 6 columns of 10 rows
     text = wide_csv(40, text_at=17)
     lines = text.splitlines()
     lines[3] = ",".join(c if j != 25 else "" for j, c in enumerate(lines[3].split(",")))
@@ -294,14 +348,14 @@ def test_wide_file_readers_agree(tmp_path, monkeypatch):
         warnings.simplefilter("always")
         fast = load_bench(path)
     assert len(fast_warnings) == 1 and "x25" in str(fast_warnings[0].message)
-    monkeypatch.setattr(_bench, "_FAST_CSV", False)
+    monkeypatch.setattr(_csv, "_FAST_CSV", False)
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         slow = load_bench(path)
     pd.testing.assert_frame_equal(fast.frame, slow.frame, check_exact=True)
     assert fast.covariates == slow.covariates and "x17" not in fast.covariates
     assert np.isnan(fast.frame["x25"][2])
-    monkeypatch.setattr(_bench, "_FAST_CSV", True)
+    monkeypatch.setattr(_csv, "_FAST_CSV", True)
     lines[5] = ",".join(c if j != 1 else "" for j, c in enumerate(lines[5].split(",")))
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(BenchDataError, match=r"column 'force_N', row 5 \(line 6\): empty cell"):
@@ -311,7 +365,7 @@ def test_wide_file_readers_agree(tmp_path, monkeypatch):
 def test_fast_reader_takes_a_wide_file(tmp_path):
     path = tmp_path / "wide.csv"
     path.write_text(wide_csv(300))
-    table = _bench._read_csv_fast(path, str(path))
+    table = _csv._read_csv_fast(path, str(path))
     assert table is not None and len(table.names) == 300
     # muscle, the 300 columns, source_row
     assert pamid.load_bench(path).frame.shape == (10, 1 + 300 + 1)
@@ -334,7 +388,7 @@ def test_numbers_pyarrow_parses_read_as_the_cell_by_cell_reader_reads_them(tmp_p
                         f"200,10,{cell},1\n")
         outcomes = []
         for fast in (True, False):
-            monkeypatch.setattr(_bench, "_FAST_CSV", fast)
+            monkeypatch.setattr(_csv, "_FAST_CSV", fast)
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
@@ -349,6 +403,6 @@ def test_numbers_pyarrow_parses_read_as_the_cell_by_cell_reader_reads_them(tmp_p
     # a blank or a tab anywhere: the numbers are read as text, cell by cell where they must
     path = tmp_path / "blank.csv"
     path.write_text("muscle,pressure_kPa,force_N,contraction_pct\nA, 100,10,5\nA,200,20,5\n")
-    table = _bench._read_csv_fast(path, str(path))
+    table = _csv._read_csv_fast(path, str(path))
     assert table is None or table.columns["pressure_kPa"].values is None
     assert load_bench(path).frame["pressure_kPa"].tolist() == [100.0, 200.0]

@@ -1,4 +1,5 @@
-"""Loading free-decay recordings (CSV or Parquet), checked as thoroughly as bench files.
+"""Loading free-decay recordings (CSV, Parquet or a spreadsheet), checked as thoroughly as
+bench files.
 
 A decay file holds one row per encoder sample of one or more free decays of a PAM-driven
 joint (Cullinan, section VI): released from a deflection, the arm oscillates and comes to
@@ -36,24 +37,12 @@ import numpy as np
 import pandas as pd
 
 from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_to_kPa
-from ._bench import (
-    _as_floats,
-    _check_missing,
-    _check_time_increases,
-    _file_kind,
-    _first_problem,
-    _first_true,
-    _read_csv,
-    _read_parquet,
-    _stream_bytes,
-    _Table,
-)
-from ._bench import (
-    _check_units as _bench_check_units,
-)
-from ._bench import (
-    _quantity_of as _bench_quantity_of,
-)
+from ._cells import _quantity_of as _bench_quantity_of
+from ._checks import _check_missing, _check_time_increases, _first_true
+from ._checks import _check_units as _bench_check_units
+from ._readers import reader_for
+from ._streams import _stream_bytes
+from ._table import _as_floats, _first_problem, _Table
 
 __all__ = ["MIN_SAMPLES", "DecayData", "load_decay"]
 
@@ -141,7 +130,9 @@ def _check_required(table: _Table) -> tuple[str, str]:
 
 
 def load_decay(path: str | os.PathLike) -> DecayData:
-    """Load a decay file (CSV, or Parquet for ``.parquet``/``.pq``); see the module docstring.
+    """Load a decay file; see the module docstring. The reader is that of the file's format
+    (:func:`pamid._data._readers.reader_for`: CSV, Parquet for ``.parquet``/``.pq``, a
+    spreadsheet's first sheet for ``.xlsx``, ``.ods``, ...).
 
     Raises:
         BenchDataError: for any problem with the file, naming the file and, where it
@@ -150,10 +141,7 @@ def load_decay(path: str | os.PathLike) -> DecayData:
     shown = str(path)
     p = Path(path)
     stream = _stream_bytes(p, shown)  # a pipe or /dev/stdin, read once (None for a file)
-    if _file_kind(p, stream) == "parquet":
-        table = _read_parquet(p, shown, stream)
-    else:
-        table = _read_csv(p, shown, data=stream)
+    table = reader_for(p, stream).read(p, shown, data=stream)
     _check_units(table)
     angle_col, angle_unit = _check_required(table)
     names, cols, n = table.names, table.columns, table.n_rows

@@ -23,12 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import BenchDataError
-from ._bench import _check_duplicates, _Column, _read_bytes, _Table
+from ._streams import _read_bytes
+from ._table import _check_duplicates, _Column, _Table
 
-__all__ = ["SPREADSHEET_SUFFIXES", "column_letter", "read_spreadsheet"]
+__all__ = ["SPREADSHEET_SUFFIXES", "column_letter", "read_spreadsheet", "spreadsheet_names"]
 
 #: Extensions read as spreadsheets.
 SPREADSHEET_SUFFIXES: tuple[str, ...] = (".xlsx", ".xlsm", ".xlsb", ".xls", ".ods")
+#: The first bytes of a spreadsheet: a zip (xlsx, ods) or an OLE file (xls).
+SPREADSHEET_SIGNATURES: tuple[bytes, ...] = (b"PK\x03\x04", b"\xd0\xcf\x11\xe0")
 
 _DATES = (dt.datetime, dt.date, dt.time, dt.timedelta)
 
@@ -56,6 +59,11 @@ def _text(cell) -> str:
     if isinstance(cell, (dt.datetime, dt.date, dt.time)):
         return cell.isoformat(sep=" ") if isinstance(cell, dt.datetime) else cell.isoformat()
     return str(cell)
+
+
+def _filled(row) -> bool:
+    """Whether a row has a cell that is not blank."""
+    return any(not (isinstance(c, str) and not c.strip()) for c in row)
 
 
 def _column(name: str, cells: list, decimal: str) -> _Column:
@@ -116,10 +124,7 @@ def read_spreadsheet(path: Path, shown: str, *, sheet: str | None = None,
         raise BenchDataError(shown, f"cannot read the sheet's cells ({exc})", sheet=sheet
                              ) from exc
 
-    def filled(row) -> bool:
-        return any(not (isinstance(c, str) and not c.strip()) for c in row)
-
-    records = [(top + k + 1, row) for k, row in enumerate(rows) if filled(row)]
+    records = [(top + k + 1, row) for k, row in enumerate(rows) if _filled(row)]
     if not records:
         raise BenchDataError(shown, "the sheet is empty; expected a table with a header",
                              sheet=sheet)
@@ -128,7 +133,7 @@ def read_spreadsheet(path: Path, shown: str, *, sheet: str | None = None,
     records = records[1:]
     width = len(names)
     while width and not names[width - 1] and not any(
-        filled([row[width - 1]]) for _, row in records
+        _filled([row[width - 1]]) for _, row in records
     ):
         width -= 1  # empty columns right of the table
     names = names[:width]
@@ -147,3 +152,16 @@ def read_spreadsheet(path: Path, shown: str, *, sheet: str | None = None,
     lines = [number for number, _ in records]
     return _Table(shown, names, columns, len(records), lines, is_csv=False, sheet=sheet,
                   letters=letters)
+
+
+def spreadsheet_names(path: Path, shown: str, data: bytes | None = None) -> list[str]:
+    """The header of the first sheet (its first non-empty row) as text (``data``: a stream's
+    bytes); the rows below it are not turned into Python objects."""
+    from python_calamine import CalamineWorkbook
+
+    workbook = (CalamineWorkbook.from_path(str(path)) if data is None
+                else CalamineWorkbook.from_filelike(io.BytesIO(data)))
+    for row in workbook.get_sheet_by_index(0).iter_rows():
+        if _filled(row):
+            return [_text(cell) for cell in row]
+    return []

@@ -64,19 +64,10 @@ def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
 def _is_decay_file(path: Path) -> bool:
     """A decay file names its angle (``angle_rad`` or ``angle_deg``); a bench file never does.
     Only the header is read; a file that cannot be read is left to ``load_bench`` to report."""
-    from .._data._bench import PARQUET_SUFFIXES
+    from .._data._readers import column_names  # a pipe is read once, kept for the loader
 
     try:
-        if path.suffix.lower() in PARQUET_SUFFIXES:
-            import pyarrow.parquet as pq
-
-            names = pq.read_schema(path).names
-        else:
-            from .._data._bench import head_bytes  # a pipe is read once, kept for the loader
-
-            first = head_bytes(path).split(b"\n", 1)[0].decode("utf-8-sig", "replace")
-            names = [c.strip().strip('"')
-                     for c in first.replace(";", ",").replace("\t", ",").split(",")]
+        names = column_names(path)
     except Exception:
         return False
     return "angle_rad" in names or "angle_deg" in names
