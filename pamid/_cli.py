@@ -32,14 +32,28 @@ EXIT_BAD_INPUT = 2
 _INPUT_ARGUMENTS = ("data", "decay", "model_json", "fit")
 
 
-def _enable_compilation_cache() -> None:
+def _enable_compilation_cache():
+    """Switch on JAX's persistent compilation cache for this command; returns the function
+    that puts the caller's setting back (a test or a notebook calling ``main`` in-process
+    keeps compiling as it did before, and writes nothing into the cache afterwards)."""
     import jax
+    from jax.experimental.compilation_cache import compilation_cache
 
     cache = os.environ.get("PAMID_CACHE_DIR") or str(Path.home() / ".cache" / "pamid" / "jax")
     try:
         Path(cache).mkdir(parents=True, exist_ok=True)
     except OSError:
-        return  # an unwritable home is no reason to fail; we just compile every time
+        return lambda: None  # an unwritable home is no reason to fail; we compile every time
+    names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs",
+             "jax_persistent_cache_min_entry_size_bytes")
+    before = {name: getattr(jax.config, name) for name in names}
+
+    def restore() -> None:
+        for name, value in before.items():
+            jax.config.update(name, value)
+        compilation_cache.reset_cache()
+
+    compilation_cache.reset_cache()
     jax.config.update("jax_compilation_cache_dir", cache)
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
@@ -48,6 +62,7 @@ def _enable_compilation_cache() -> None:
     from ._fit import _export_cache
 
     _export_cache.enable(Path(cache) / "exported")
+    return restore
 
 
 def _format_table(result, published=None) -> str:
@@ -383,6 +398,7 @@ def main(argv: list[str] | None = None) -> int:
 
     exporting = _export_cache.directory()
     sigterm = failure.catch_sigterm()
+    restore_cache = lambda: None  # noqa: E731 (set where the cache is switched on)
     try:
         # Before any computing: the output place can be written, and no output of this run
         # can replace one of its input files (every writer of pamid._io checks). The
@@ -393,7 +409,7 @@ def main(argv: list[str] | None = None) -> int:
                                command=_command_name(args)) as staging:
             if staging is not None:
                 args.out = str(staging)
-            _enable_compilation_cache()
+            restore_cache = _enable_compilation_cache()
             with warnings.catch_warnings():
                 warnings.simplefilter("always")
                 warnings.showwarning = _show_warning
@@ -430,6 +446,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pamid: error: {failure.describe(exc, args.command)}", file=sys.stderr)
         return failure.EXIT_INTERNAL
     finally:  # a caller in the same process (a test, a notebook) gets its setting back
+        restore_cache()
         _export_cache.enable(exporting)
         _io.protect_inputs([])
         failure.restore_sigterm(sigterm)

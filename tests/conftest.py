@@ -97,6 +97,20 @@ def small_bench(theta31, tmp_path_factory) -> SmallBench:
     return SmallBench(theta, frame, bench, pamid.bench_to_fit_data(bench), frame_groups(frame))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _compilation_cache_of_the_run(tmp_path_factory):
+    """Commands run in-process (``pamid._cli.main``) keep their compilation cache in a
+    folder of this test run, never in the user's ``~/.cache/pamid``."""
+    cache = tmp_path_factory.mktemp("jax-cache-in-process")
+    before = os.environ.get("PAMID_CACHE_DIR")
+    os.environ["PAMID_CACHE_DIR"] = str(cache)
+    yield
+    if before is None:
+        os.environ.pop("PAMID_CACHE_DIR", None)
+    else:
+        os.environ["PAMID_CACHE_DIR"] = before
+
+
 #: The installed command, as a user runs it (in a subprocess).
 PAMID = [sys.executable, "-m", "pamid._cli"]
 
