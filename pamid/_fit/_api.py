@@ -94,7 +94,8 @@ class FitResult:
     def to_json(self, **extra) -> str:
         """``json.dumps({**self.to_dict(), **extra})``, the same text, written without the
         dictionaries: every muscle's entry is one ``%`` of a template that
-        :meth:`_muscle_entry` lays out (10,000 muscles: 0.27 s → 0.08 s of CPU)."""
+        :meth:`_muscle_entry` lays out (3× faster: benchmarks/README.md, "Figures that
+        used to live in docstrings", (i))."""
         columns, optional = self._json_columns(text=True)
         marks = [f"<<pamid-json-{k}>>" for k in range(len(columns))]
         template = json.dumps(self._muscle_entry(iter(marks), optional)).replace("%", "%%")
@@ -398,7 +399,8 @@ def fit_least_squares(
         raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")
     if isinstance(data, BenchData):
         names = tuple(m if data.has_muscle_column else None for m in data.muscles)
-        # Curves (3 s for 3,000,000 rows) only for the intervals that resample or cluster
+        # Curves (seconds for millions of rows: benchmarks/README.md, "Figures that used to
+        # live in docstrings", (i)) only for the intervals that resample or cluster
         # them; without them the residual's lag-1 autocorrelation is measured between
         # consecutive samples of each muscle, which crosses a curve boundary once a curve.
         grouped = bool({"bootstrap", "cluster", "hac"} & set(intervals))
@@ -410,7 +412,8 @@ def fit_least_squares(
 
     lanes = fit_lanes(spec, data, solver=solver, bounds=bounds, starts=starts)
     theta, steps = lanes.theta, lanes.steps
-    sse, jtj_inv, corr, n, full_rank = statistics(spec, theta, data)
+    # The residual's lag-1 sums (for_fit, below) come from the same compiled call.
+    sse, jtj_inv, corr, n, full_rank, *lag1 = statistics(spec, theta, data, lag1=True)
     se, lo, hi, s2, dof = _intervals.wald(theta, jtj_inv, sse, n, level)
     # A fit whose constants are not all determined by the data (rank-deficient Jacobian, a
     # constant that ran off, no degrees of freedom left) is not reported as converged,
@@ -433,7 +436,7 @@ def fit_least_squares(
 
     with np.errstate(invalid="ignore"):  # NaN where the data do not determine a constant
         covariance = s2[:, None, None] * jtj_inv
-    correlated = _correlated.for_fit(spec, data, theta, intervals, trials, level)
+    correlated = _correlated.for_fit(spec, data, theta, intervals, trials, level, lag1=lag1)
     return FitResult(
         model=spec.name,
         param_names=spec.param_names,

@@ -59,7 +59,7 @@ import numpy as np
 
 from ._batch import FitData, map_lanes
 from ._intervals import t_critical, wald_interval
-from ._least_squares import _key, residuals
+from ._least_squares import _key, lag1_sums, residuals
 from ._spec import ModelSpec
 
 CLUSTER_KINDS = ("CR1", "CR2", "CR3")
@@ -257,22 +257,24 @@ def _longest_run(groups) -> np.ndarray:
     return counts.max(axis=-1)
 
 
+def lag1_from_sums(num, den, n_pairs):
+    """ρ̂ = num / den and its one-sided p-value against independence (z = ρ̂·√pairs);
+    NumPy arrays. Returns (rho, p_value, pairs)."""
+    from scipy.special import ndtr
+
+    num, den, n_pairs = np.asarray(num), np.asarray(den), np.asarray(n_pairs)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = num / den
+    p_value = np.where(n_pairs > 0, 1.0 - ndtr(rho * np.sqrt(n_pairs)), np.nan)
+    return rho, p_value, n_pairs
+
+
 def lag1_autocorrelation(r, groups):
     """Lag-1 autocorrelation of the residuals inside groups, per muscle, and its one-sided
     p-value against independence: ρ̂ = Σ rₜr_{t−1} / Σ rₜ² over pairs of neighbouring rows
     of one group, z = ρ̂·√(pairs) ~ N(0, 1) under independence (Box & Jenkins' large-sample
     standard error 1/√n). Returns (rho, p_value, pairs)."""
-    from scipy.special import ndtr
-
-    r = np.asarray(r, float)
-    groups = np.asarray(groups)
-    pair = _pairs(groups, 1)
-    n_pairs = np.sum(pair, axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.sum(pair * r[:, 1:] * r[:, :-1], axis=-1) / np.sum(
-            np.where(groups >= 0, r * r, 0.0), axis=-1)
-    p_value = np.where(n_pairs > 0, 1.0 - ndtr(rho * np.sqrt(n_pairs)), np.nan)
-    return rho, p_value, n_pairs
+    return lag1_from_sums(*lag1_sums(np.asarray(r, float), np.asarray(groups)))
 
 
 def ar1_noise(key, groups, n_draws: int, sigma: float, phi: float) -> np.ndarray:
@@ -351,20 +353,24 @@ def trial_groups(bench) -> np.ndarray:
 
 
 def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
-            level: float = 0.95) -> dict:
+            level: float = 0.95, lag1=None) -> dict:
     """What :func:`pamid.fit_least_squares` adds to its result: the residual's lag-1
     autocorrelation (always; within curves where ``data`` carries them), the "cluster"
     interval (CR3 by curve, t on G − 1) and the "hac" interval (Newey–West within
     ``trials``, default within curves) where asked for, and per muscle a note on which
-    interval holds and why."""
-    curves = np.asarray(data.curve)
+    interval holds and why. ``lag1``: the sums of :func:`lag1_sums` within ``data.curve``
+    where the caller has them already (the fit's statistics program computes them: no
+    second pass over the samples)."""
     wanted = [k for k in ("cluster", "hac") if k in intervals]
+    # The curves to the host only where they are used (10,000 muscles of 300 rows: 24 MB).
+    curves = np.asarray(data.curve) if wanted or lag1 is None else None
     if wanted:
         jac_r = jacobian_residuals(spec, theta, data)
-        r = jac_r[1]
+    if lag1 is not None:
+        rho, p_value, _ = lag1_from_sums(*lag1)
     else:
-        r = batch_residuals(spec, theta, data)
-    rho, p_value, _ = lag1_autocorrelation(r, curves)
+        r = jac_r[1] if wanted else batch_residuals(spec, theta, data)
+        rho, p_value, _ = lag1_autocorrelation(r, curves)
     out = {"residual_lag1": rho, "residual_lag1_p": p_value}
     m = theta.shape[0]
     g = bw = None
@@ -380,28 +386,25 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
         out["ci95_hac"] = np.stack([h["lower"], h["upper"]], axis=-1)
         bw = out["hac_bandwidth"] = h["bandwidth"]
     flagged = (rho >= LAG1_NOTE) & (p_value < LAG1_P)
-    notes = []
-    for i in range(m):
-        if not flagged[i]:
-            notes.append(None)
-            continue
+    notes = [None] * m
+    for i in np.flatnonzero(flagged).tolist():  # only the muscles with something to say
         head = (f"residual lag-1 autocorrelation {rho[i]:.2f} between consecutive samples: "
                 "the Wald interval assumes independent noise and is too narrow; ")
         if g is not None and g[i] >= 2:
             few = (f" (only {int(g[i])} curves; pamid's coverage study had 10–24)"
                    if g[i] < 10 else "")
-            notes.append(head + f"ci95_cluster (CR3 by curve, t on {int(g[i]) - 1} dof) "
+            notes[i] = (head + f"ci95_cluster (CR3 by curve, t on {int(g[i]) - 1} dof) "
                          f"holds under correlated noise{few}")
         elif bw is not None:
-            notes.append(head + f"ci95_hac (Newey–West, bandwidth {bw[i]:.0f} rows) allows "
+            notes[i] = (head + f"ci95_hac (Newey–West, bandwidth {bw[i]:.0f} rows) allows "
                          "for it but ran 85–95 % in pamid's coverage study; ask for the "
                          "cluster interval (--intervals wald,profile,cluster) where the data "
                          "have curves")
         elif g is not None:
-            notes.append(head + f"the cluster interval needs at least two curves (this "
+            notes[i] = (head + f"the cluster interval needs at least two curves (this "
                          f"muscle has {int(g[i])}), so none that holds can be given")
         else:
-            notes.append(head + "ask for the cluster interval (--intervals wald,profile,cluster), "
+            notes[i] = (head + "ask for the cluster interval (--intervals wald,profile,cluster), "
                          "which holds under correlated noise")
     out["interval_notes"] = tuple(notes)
     groups_of = {"cluster": "curve", "hac": "curve" if trials is None else "trial"}
@@ -425,6 +428,8 @@ __all__ = [
     "hac_covariance",
     "jacobian_residuals",
     "lag1_autocorrelation",
+    "lag1_from_sums",
+    "lag1_sums",
     "n_groups",
     "sandwich_intervals",
     "t_critical",

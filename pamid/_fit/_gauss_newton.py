@@ -47,9 +47,9 @@ from ._rank import RANK_PIVOT  # the one rank criterion of pamid's fits (``_rank
 from ._variable_projection import _parabolic_trial, _shrink_bracket, _small_cholesky_solve
 
 #: Lanes per compiled call on the CPU (``map_lanes`` chunks): a chunk's arrays (1.2 MB each
-#: at 300 samples) stay in the caches. Single-thread CPU time at 10,000 muscles of 300
-#: samples, measured: 268 ms in chunks of 512, 307 ms (1024), 428 ms (2048), 397 ms (one
-#: call); at 1000 muscles, one call and chunks of 512 take the same.
+#: at 300 samples) stay in the caches; 512 was the fastest chunk measured at 10,000 muscles
+#: and no slower than one call at 1000 (benchmarks/README.md, "Figures that used to live
+#: in docstrings", (c)).
 CPU_CHUNK_LANES = 512
 
 #: Largest subsample of a muscle scanned for the start (evenly spaced over its samples).
@@ -280,14 +280,18 @@ def sarosi_fast_start(x, y, w, grid=START_GRID, n_sub=START_SAMPLES, n_refine=ST
     return jnp.stack([b[:, 0], b[:, 1], mid, b[:, 2], b[:, 3], b[:, 4]], -1)
 
 
-def _pass(theta, step, p, k, y, w, sw, rtol, atol, newton, full=True):
+def _pass(theta, step, p, k, y, w, sw, rtol, atol, newton, full=True, curve=None):
     """One pass over the samples at ``theta``: the 15 JᵀWJ entries that depend on the
     constants (rows a1…a3, upper part), JᵀWr, rᵀWr, max_n (|(J·step)_n| − rtol·|r_n|) with
     weighted residuals r, and Σ w·r·∂²F/∂a3∂(a1, a2, a3), the second-order part of the
     Hessian (the other second derivatives of eq. 2.1 vanish; zeros unless ``newton`` > 0).
 
     ``full=False``: only rᵀWr and the maximum (a pass that only checks convergence); the
-    other outputs are zeros.
+    other outputs are zeros. ``curve`` (M, n): also, as a sixth output, the sums of the
+    weighted residual's lag-1 autocorrelation within curves, (Σ pair·rₜ·r_{t−1}, Σ rₜ² over
+    rows of a curve, pairs) as :func:`pamid._fit._least_squares.lag1_sums` defines them, in
+    the same loop over the samples (measured at 100 muscles: +80 µs on this pass's 130; the
+    same sums as reductions of their own: +150 µs).
     """
     a1, a2, a3, a4, a5, a6 = (theta[:, i : i + 1] for i in range(6))
     e = jax.lax.optimization_barrier(jnp.exp(a3 * k))
@@ -309,6 +313,13 @@ def _pass(theta, step, p, k, y, w, sw, rtol, atol, newton, full=True):
     terms += [wpe * r, we * r, wr * kp, wr * p, wr, wr * r, wr * kp * e, wr * k * e]
     if newton > 0:
         terms += [wr * k * u3]
+    n_terms = len(terms)
+    if curve is not None:
+        swr = sw * r
+        prev = jnp.pad(swr[:, :-1], ((0, 0), (1, 0)))  # the row before (row 0: unpaired)
+        pair = jnp.pad((curve[:, 1:] == curve[:, :-1]) & (curve[:, 1:] >= 0), ((0, 0), (1, 0)))
+        terms += [pair * swr * prev, jnp.where(curve >= 0, swr * swr, 0.0),
+                  pair.astype(theta.dtype)]
     out = _reduce_samples(terms, [excess])
     pe_pe, pe_e, pe_u3, pe_kp, pe_p, pe_1, e_e, e_u3, e_kp, e_1, u3_u3, u3_kp, u3_1 = out[:13]
     pe_r, e_r, kp_r, p_r, r_1, sse, kpe_r, ke_r = out[13:21]
@@ -334,6 +345,8 @@ def _pass(theta, step, p, k, y, w, sw, rtol, atol, newton, full=True):
     ]
     jtr = jnp.stack([pe_r, e_r, b1 * kpe_r + b2 * ke_r, kp_r, p_r, r_1], -1)
     second = [kpe_r, ke_r, out[21] if newton > 0 else zero]
+    if curve is not None:
+        return varying, jtr, sse, out[-1], second, tuple(out[n_terms:n_terms + 3])
     return varying, jtr, sse, out[-1], second
 
 
@@ -477,13 +490,16 @@ def sarosi_gauss_newton(
 
 
 @jax.jit
-def sarosi_statistics(theta, x, y, w):
+def sarosi_statistics(theta, x, y, w, curve=None):
     """What the intervals need at the fitted constants, from two passes over the samples.
 
     Returns, per muscle: SSE, (JᵀWJ)⁻¹ (6×6), the correlation R of data and model, the
     sample count Σw, and whether JᵀWJ is positive definite to working precision (the
-    constants are determined by the data). (JᵀWJ)⁻¹ is the inverse of the normal matrix,
-    equilibrated to unit diagonal and factorised by an unrolled Cholesky; where its smallest
+    constants are determined by the data); with ``curve`` (M, n), also the three sums of
+    the residual's lag-1 autocorrelation within curves
+    (:func:`pamid._fit._least_squares.lag1_sums`) from the same pass (:func:`_pass`).
+    (JᵀWJ)⁻¹ is the inverse of the normal matrix, equilibrated to unit diagonal and
+    factorised by an unrolled Cholesky; where its smallest
     pivot is below ``RANK_PIVOT`` (the columns of J are dependent to about 1e-6.5 of their
     length), the muscle is rank-deficient and the inverse is +inf.
 
@@ -492,7 +508,8 @@ def sarosi_statistics(theta, x, y, w):
     """
     p, k = x
     zero = jnp.zeros_like(theta)
-    varying, jtr, sse, _, _ = _pass(theta, zero, p, k, y, w, jnp.sqrt(w), 0.0, 0.0, 0)
+    varying, jtr, sse, _, _, *lag1 = _pass(theta, zero, p, k, y, w, jnp.sqrt(w), 0.0, 0.0, 0,
+                                           curve=curve)
     *fixed, yy, sum_y = _fixed_jtj(p, k, y, w)
     n = fixed[-1]
     jtj = _jtj(varying, fixed)
@@ -508,7 +525,7 @@ def sarosi_statistics(theta, x, y, w):
     cov_yr = r_y - n * y_mean * r_mean
     var_r = sse - n * r_mean**2
     corr = (var_y + cov_yr) / jnp.sqrt(var_y * (var_y + 2 * cov_yr + var_r))
-    return sse, inv, corr, n, full_rank
+    return (sse, inv, corr, n, full_rank, *(lag1[0] if lag1 else ()))
 
 
 def sarosi_derivatives(x, y, w):

@@ -215,8 +215,8 @@ def solve(
         ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
         return theta, ok, np.asarray(steps)
     if theta0 is None:
-        theta0 = map_lanes(spec.start, data.x, data.y, data.w, cache_key=_key("start", spec))
-    theta0 = jnp.asarray(theta0, dtype=jnp.float64)
+        theta0 = _start_values(spec, data)
+    theta0 = _host(theta0)
     if bounds is not None:
         lower, upper = (jnp.broadcast_to(jnp.asarray(b, float), theta0.shape[-1:]) for b in bounds)
         if bool(jnp.any(lower > upper)):
@@ -238,6 +238,40 @@ def solve(
     return theta, ok, np.asarray(steps)
 
 
+def _host(theta) -> np.ndarray:
+    """Constants as a float64 NumPy array: a compiled call takes them to the device itself
+    (``jnp.asarray`` first cost 13 µs of a one-muscle fit's 0.4 ms)."""
+    return np.asarray(theta, dtype=np.float64)
+
+
+def _start_values(spec: ModelSpec, data: FitData):
+    """``spec.start`` of every lane. pamid's own specs' starts run compiled from their
+    second call on (as they do through the exported programs of the command line): op by
+    op, the generic start's ``candidates(...)[0][:, 0]`` was a tenth of a one-muscle
+    Cullinan fit. The first call runs as written: the generic start does work outside JAX
+    on first use (finding the linear constants), which cannot be traced, and a failed trace
+    was measured to leave later compiled calls slower (benchmarks/README.md, "Figures that
+    used to live in docstrings", (f)). A start that cannot be compiled (a registered
+    user's, in NumPy) keeps running as written."""
+    key = _key("start", spec)
+    compiled = _COMPILED_STARTS.get(spec.start) if key is not None else None
+    if compiled is not None:
+        try:
+            return map_lanes(compiled, data.x, data.y, data.w, cache_key=key)
+        except _TRACING_ERRORS:
+            _COMPILED_STARTS[spec.start] = None
+    out = map_lanes(spec.start, data.x, data.y, data.w, cache_key=key)
+    if key is not None:
+        _COMPILED_STARTS.setdefault(spec.start, jax.jit(spec.start))
+    return out
+
+
+#: Compiled starts by start function (None: it cannot be compiled).
+_COMPILED_STARTS: dict = {}
+_TRACING_ERRORS = (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayConversionError,
+                   jax.errors.TracerBoolConversionError, jax.errors.TracerIntegerConversionError)
+
+
 def _sarosi_chunk() -> int | None:
     """Lanes per call of the written-out Sárosi kernels: ``CPU_CHUNK_LANES`` on the CPU (the
     arrays of a chunk stay in the caches), ``map_lanes``'s default elsewhere."""
@@ -250,23 +284,69 @@ def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
     return None if name is None else (what, *name, *static)
 
 
-def statistics(spec: ModelSpec, theta, data: FitData):
+def lag1_sums(r, groups, xp=np):
+    """The sums behind :func:`lag1_autocorrelation`, along the last (row) axis: Σ rₜr_{t−1}
+    over pairs of neighbouring rows of one group, Σ rₜ² over the rows of a group, and the
+    number of pairs. ``xp``: NumPy, or ``jax.numpy`` inside a compiled program (the fit
+    takes them from its statistics program, :func:`statistics`)."""
+    g0, g1 = groups[..., 1:], groups[..., :-1]
+    pair = (g0 == g1) & (g0 >= 0)
+    num = xp.sum(pair * r[..., 1:] * r[..., :-1], axis=-1)
+    den = xp.sum(xp.where(groups >= 0, r * r, 0.0), axis=-1)
+    return num, den, xp.sum(pair, axis=-1)
+
+
+@functools.partial(jax.jit, static_argnames=("spec",))
+def _statistics_lag1(spec, theta, x, y, w, curve):
+    """:func:`statistics`' program with the lag-1 sums of the residual within ``curve``
+    (:func:`lag1_sums`) in the same compiled call: from the fast
+    path's own pass over the samples where its statistics take ``curve=`` (Sárosi's
+    ``sarosi_statistics``), else from the residual, computed once more."""
+    import inspect
+
+    fast = spec.fast_path
+    if fast is not None and "curve" in inspect.signature(fast.statistics).parameters:
+        return fast.statistics(theta, x, y, w, curve=curve)
+    if fast is not None:
+        stats = fast.statistics(theta, x, y, w)
+    else:
+        stats = _statistics(spec, theta, x, y, w)
+    r = jax.vmap(lambda t, x, y, w: residuals(spec, t, x, y, w))(theta, x, y, w)
+    return (*stats, *lag1_sums(r, curve, jnp))
+
+
+def statistics(spec: ModelSpec, theta, data: FitData, *, lag1: bool = False):
     """Per muscle: SSE, (JᵀJ)⁻¹, correlation of model and data, sample count, and whether
     the Jacobian has full rank at the optimum (the constants are identifiable).
 
     For the Sárosi model, the written-out sums of ``sarosi_statistics`` (two passes over the
-    samples; 10,000 muscles of 300 samples: 21 ms, against 128 ms for a Jacobian, QR and SVD
-    per lane, the same inverse to 1e-10: ``benchmarks/profile_pieces.py --only-cores``);
-    for other models, the Jacobian by ``jax.jacfwd`` and an SVD."""
-    if spec.fast_path is not None:
+    samples; about 6× faster than a Jacobian, QR and SVD per lane, the same inverse to
+    1e-10: ``benchmarks/profile_pieces.py --only-cores``, figures in benchmarks/README.md,
+    "Figures that used to live in docstrings", (f)); for other models, the Jacobian by
+    ``jax.jacfwd`` and an SVD.
+
+    ``lag1``: also the sums of the residual's lag-1 autocorrelation within ``data.curve``
+    (:func:`pamid._fit._least_squares.lag1_sums`: three more arrays), from the same compiled
+    call (a pass of its own and its round trip cost the fit of one muscle more than a
+    quarter of its time: the same README section, (f))."""
+    fast = spec.fast_path
+    if lag1:
         out = map_lanes(
-            spec.fast_path.statistics, jnp.asarray(theta), data.x, data.y, data.w,
+            lambda t, x, y, w, c: _statistics_lag1(spec, t, x, y, w, c), _host(theta),
+            data.x, data.y, data.w, data.curve,
+            chunk=_sarosi_chunk() if fast is not None else None,
+            cache_key=_key("statistics_lag1", spec),
+        )
+        return tuple(np.asarray(a) for a in out)
+    if fast is not None:
+        out = map_lanes(
+            fast.statistics, _host(theta), data.x, data.y, data.w,
             chunk=_sarosi_chunk(),
-            cache_key=(f"{spec.fast_path.key}_statistics",),
+            cache_key=(f"{fast.key}_statistics",),
         )
         return tuple(np.asarray(a) for a in out)
     out = map_lanes(
-        lambda t, x, y, w: _statistics(spec, t, x, y, w), jnp.asarray(theta), data.x, data.y,
+        lambda t, x, y, w: _statistics(spec, t, x, y, w), _host(theta), data.x, data.y,
         data.w, cache_key=_key("statistics", spec),
     )
     return tuple(np.asarray(a) for a in out)
@@ -447,7 +527,7 @@ def _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower=None, upper
         return None
     theta0 = np.asarray(cands[0])
     if spec.candidates is None:  # the model's own start first, then the candidates
-        own = map_lanes(spec.start, data.x, data.y, data.w, cache_key=_key("start", spec))
+        own = _start_values(spec, data)
         theta0 = np.concatenate([np.asarray(own)[:, None], theta0], axis=1)
     k = min(k, theta0.shape[1])
     rep = _repeat_lanes(data, k)
@@ -509,13 +589,11 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
                     rtol=rtol, atol=atol)
     theta, ok, steps = (np.array(a) for a in out)
     m, p = theta.shape
-    finite = np.all(np.isfinite(theta), axis=-1)
 
     def outside(t):
-        if lower is None:
-            return ~np.all(np.isfinite(t), axis=-1)
-        with np.errstate(invalid="ignore"):
-            return np.any((t < lower) | (t > upper), axis=-1) | ~np.all(np.isfinite(t), axis=-1)
+        # (Comparisons with NaN are False without a warning: no errstate, 5 µs a call.)
+        bad = ~np.isfinite(t).all(axis=-1)
+        return bad if lower is None else bad | ((t < lower) | (t > upper)).any(axis=-1)
 
     # 2. Another try from several starts for the lanes one start did not serve.
     out_now = outside(theta)

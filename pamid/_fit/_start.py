@@ -107,36 +107,74 @@ def trial_values(defaults, lower, upper, nonlinear: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Smallest Cholesky pivot of a trial's equilibrated normal matrix (unit diagonal) for which
+#: the start solves the linear constants from the normal equations, written out
+#: (:func:`pamid._fit._variable_projection._small_cholesky_solve`; relative error about
+#: 1e-16 / pivot, 1e-8 at worst). Where a lane of a batch has a smaller one (dependent
+#: columns, a constant the data do not see), the whole batch is solved by an SVD instead.
+CHOLESKY_PIVOT = 1e-8
+
+
 def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower, upper):
     """A batched start function ``(x, y, w) -> (theta (M, K, p), sse (M, K))``, candidates
     sorted best first, each with its linear constants solved by weighted least squares
-    for the trial values of the others, then clipped into the bounds."""
+    for the trial values of the others, then clipped into the bounds.
+
+    The least-squares problems (columns scaled to unit length) are solved from their normal
+    equations by an unrolled Cholesky, a few dozen elementwise operations across the batch:
+    a batched SVD (one LAPACK call per lane and trial) took 40 % of the time of Cullinan
+    fits of 1000 muscles (``benchmarks/run.py --quick --only cullinan``; benchmarks/README.md,
+    "Figures that used to live in docstrings", (g)). A
+    batch with a nearly singular design (:data:`CHOLESKY_PIVOT`) is solved by the SVD,
+    which tolerates a rank-deficient design (a constant the data do not see stays at 0)."""
+    from ._variable_projection import _small_cholesky_solve
+
     lin = jnp.asarray(np.flatnonzero(linear))
+    n_lin = int(np.sum(linear))
     trials = jnp.asarray(trials)
     lower, upper = jnp.asarray(lower), jnp.asarray(upper)
 
-    def one_trial(theta, x, y, w):
-        if lin.size:
-            base = theta.at[lin].set(0.0)
-            f0 = predict(base, x)
-            g = jax.jacfwd(lambda b: predict(base.at[lin].set(b), x))(jnp.zeros(lin.size))
-            sw = jnp.sqrt(w)
-            a = sw[:, None] * g
-            # Columns scaled to unit length, then a least-squares solve that tolerates a
-            # rank-deficient design (a constant the data do not see stays at 0).
-            norm = jnp.sqrt(jnp.sum(a**2, axis=0))
-            scale = jnp.where(norm > 0, 1.0 / norm, 0.0)
-            beta, *_ = jnp.linalg.lstsq(a * scale, sw * (y - f0), rcond=1e-10)
-            theta = base.at[lin].set(beta * scale)
+    def design(theta, x, y, w):
+        """One trial's problem in the linear constants: base, scaled design, rhs, scale."""
+        base = theta.at[lin].set(0.0)
+        f0 = predict(base, x)
+        g = jax.jacfwd(lambda b: predict(base.at[lin].set(b), x))(jnp.zeros(n_lin))
+        sw = jnp.sqrt(w)
+        a = sw[:, None] * g
+        norm = jnp.sqrt(jnp.sum(a**2, axis=0))
+        scale = jnp.where(norm > 0, 1.0 / norm, 0.0)
+        return base, a * scale, sw * (y - f0), scale
+
+    def svd_solve(a, rhs):
+        return jnp.linalg.lstsq(a, rhs, rcond=1e-10)[0]
+
+    def finish(theta, x, y, w):
         theta = jnp.clip(theta, lower, upper)
         sse = jnp.sum(w * (predict(theta, x) - y) ** 2)
         return theta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
-    def one_muscle(x, y, w):
-        theta, sse = jax.vmap(one_trial, in_axes=(0, None, None, None))(trials, x, y, w)
-        order = jnp.argsort(sse)
-        return theta[order], sse[order]
+    def each(fn, trial_axis):
+        """``fn`` over the muscles (axis 0 of x, y, w) and the trials."""
+        return jax.vmap(jax.vmap(fn, in_axes=(0, None, None, None)),
+                        in_axes=(trial_axis, 0, 0, 0))
+
+    def batch(x, y, w):
+        theta = jnp.broadcast_to(trials, (y.shape[0], *trials.shape))
+        if n_lin:
+            base, a, rhs, scale = each(design, None)(trials, x, y, w)  # (M, K, …)
+            gram = jnp.einsum("mkni,mknj->mkij", a, a)
+            beta, pivot = jax.vmap(jax.vmap(
+                lambda g, c: _small_cholesky_solve(g, c, with_pivot=True)))(
+                    gram, jnp.einsum("mkni,mkn->mki", a, rhs))
+            beta = jax.lax.cond(jnp.all(pivot > CHOLESKY_PIVOT), lambda: beta,
+                                lambda: jax.vmap(jax.vmap(svd_solve))(a, rhs))
+            theta = base.at[..., lin].set(beta * scale)
+        theta, sse = each(finish, 0)(theta, x, y, w)
+        order = jnp.argsort(sse, axis=-1)
+        return (jnp.take_along_axis(theta, order[..., None], axis=1),
+                jnp.take_along_axis(sse, order, axis=1))
 
     # Compiled once per model (the spec keeps this function): called op by op, the start
-    # of a linear model took 20 ms where its whole fit takes 0.5 ms.
-    return jax.jit(jax.vmap(one_muscle))
+    # of a linear model took 40 times its whole fit (benchmarks/README.md, "Figures that
+    # used to live in docstrings", (g)).
+    return jax.jit(batch)
