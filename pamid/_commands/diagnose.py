@@ -15,15 +15,28 @@ import time
 from pathlib import Path
 
 
+def candidate_effects_text() -> str:
+    """The candidate effects, as the registry (:mod:`pamid._effects._definitions`) lists
+    them: bench files' effects, then free decays'."""
+    from .._effects._definitions import DECAY_EFFECTS, STATIC_EFFECTS
+
+    bench = [f"{d.name}:<column>" if d.family is not None else d.name for d in STATIC_EFFECTS]
+    decay = [e.name for e in DECAY_EFFECTS]
+    return f"bench files: {', '.join(bench)}; decay files: {', '.join(decay)}"
+
+
 def register(subparsers) -> None:
     diag = subparsers.add_parser(
         "diagnose",
         help="trace the residual of a fit to effects the model lacks, add them, report the gain",
         description="Fit the baseline model, test its residual for whiteness and for dependence "
-                    "on every covariate, refit with each candidate effect (hysteresis, "
-                    "temperature, drift, compliance, viscous_damping, coulomb_friction, "
-                    "covariate:<column>), select by BIC and cross-validated error, and report "
-                    "the error before and after.",
+                    "on every covariate, refit with each candidate effect "
+                    f"({candidate_effects_text()}), select by BIC and cross-validated error, "
+                    "and report the error before and after. A numeric column that only "
+                    "counts rows (whole numbers that rise from each row to the next within "
+                    "every trial of every muscle: a sample index, a row number of a source "
+                    "file, a logger's tick count) is not offered as a covariate, whatever its "
+                    "name; the report says which columns were left out and why.",
     )
     diag.add_argument("data", help="bench file (CSV, Parquet or .xlsx) or decay file (time_s, "
                                    "angle_rad|angle_deg, optional trial)")

@@ -343,16 +343,32 @@ def _level_starts(jump, held_raw, tol, exact, blocks: _Blocks) -> np.ndarray:
 
 def _direction_of(inp: _Input, blocks: _Blocks, span: np.ndarray) -> np.ndarray:
     """+1 / −1 from the time order of a moving input: the step that led to a sample when
-    it clears the noise, else the step that leaves it; pauses keep the motion before.
-    A reversal that retraces less than :data:`MIN_RETRACE` of the trial's range (a valve
-    pulse's overshoot in a ramp) is not a reversal."""
+    it clears the noise; pauses keep the motion before. The step that led to a sample is
+    measured on samples up to it only (the smoothed input ``lag // 2`` samples back), so
+    that a hold does not turn before the input leaves it (the top of an isometric ramp or
+    stairs). A pause of at most ``lag`` samples between two motions (a sweep's turning
+    point, sampled again as the first point of the return) takes the motion after it, as
+    do the samples before a block's first motion. A reversal that retraces less than
+    :data:`MIN_RETRACE` of the trial's range (a valve pulse's overshoot in a ramp) is not
+    a reversal."""
     tol = blocks.per_block(inp.tol)
-    d = np.where(np.abs(inp.back) > tol, np.sign(inp.back), 0.0)
-    fill = (d == 0) & (np.abs(inp.fwd) > tol)
+    lag = blocks.per_block(inp.lag)
+    back = inp.back[blocks.shifted(-(lag // 2))]  # causal: nothing after the sample
+    d = np.where(np.abs(back) > tol, np.sign(back), 0.0)
+    # Runs of pause rows: their length, and whether motion came before them in the block.
+    pause = d == 0
+    run_start = pause & (blocks.new | np.r_[True, ~pause[:-1]])
+    run_id = np.cumsum(run_start) - 1
+    run_len = np.bincount(run_id[pause], minlength=max(int(run_id.max()) + 1, 1))
+    short = np.zeros(len(d), dtype=bool)
+    short[pause] = (run_len[run_id[pause]] <= lag[pause]) & ~blocks.new[
+        np.flatnonzero(run_start)[run_id[pause]]]
+    fill = short & (np.abs(inp.fwd) > tol)
     d[fill] = np.sign(inp.fwd[fill])
     d = _ffill_within(d, d != 0, blocks)
     retrace = np.maximum(3.0 * inp.tol, MIN_RETRACE * span)
-    return _merge_short_runs(d, inp.smooth, blocks, blocks.per_block(retrace))
+    causal = inp.smooth[blocks.shifted(-(lag // 2))]  # the runs' values, as ``back`` saw them
+    return _merge_short_runs(d, causal, blocks, blocks.per_block(retrace))
 
 
 def _merge_short_runs(d, smooth, blocks: _Blocks, retrace):

@@ -169,7 +169,8 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     problem = StaticProblem(bench, spec, n_folds=n_folds)
     _check_baseline(bench, spec, problem.baseline)
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
-                            progress=progress, unphysical=problem.unphysical)
+                            progress=progress, unphysical=problem.unphysical,
+                            refresh=problem.refresh_grids)
     base, final = result["baseline"], result["final"]
     table = _long_table(problem, base, final)
     covs = [*problem.covariates, "force_N"]
@@ -184,6 +185,8 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     d = build_diagnosis(bench.path, "bench", spec.name, list(bench.muscles), result,
                         before, after, constants, table, unexplained(after))
     d.rows_used, d.rows_total, d.subsample = len(bench.frame), rows_total, note
+    d.covariates_not_used = [{"column": c, "why": why}
+                             for c, why in problem.not_covariates.items()]
     return d
 
 

@@ -112,6 +112,8 @@ def format_report(d) -> str:
         lines.append("5. Unexplained: nothing material — no covariate explains 2 % of the "
                      "final residual's variance at p < 0.001, and its time order shows no "
                      "lag-1 autocorrelation of 0.1 or more at p < 0.001.")
+    for c in getattr(d, "covariates_not_used", []):
+        lines.append(f"   Not used as a covariate: {c['column']} ({c['why']}).")
     return "\n".join(lines)
 
 

@@ -53,6 +53,8 @@ class Diagnosis:
     rows_used: int | None = None  # samples diagnosed (a subsample with ``max_rows``)
     rows_total: int | None = None  # samples in the file
     subsample: str | None = None  # how the subsample was drawn; None for all rows
+    #: Numeric columns of the file not used as covariates: [{"column", "why"}].
+    covariates_not_used: list[dict] = dataclasses.field(default_factory=list)
 
     def __post_init__(self):
         if self.rows_used is None:
@@ -73,7 +75,30 @@ class Diagnosis:
             "candidates": self.candidates, "steps": self.steps,
             "constants": self.constants, "residual_before": self.residual_before,
             "residual_after": self.residual_after, "unexplained": self.unexplained,
+            "covariates_not_used": self.covariates_not_used,
         })
+
+    def report(self) -> str:
+        """The diagnosis as ``pamid diagnose`` prints it: what the model missed, what was
+        added, before and after."""
+        from ._report import format_report
+
+        return format_report(self)
+
+    def plot_residuals(self, path, max_panels: int = 9):
+        """PNG at ``path``: the residual against each covariate (the ``max_panels`` most
+        significant), before and after the selected effects; written atomically. Returns
+        the figure."""
+        from ._report import plot_residuals
+
+        return plot_residuals(self, path, max_panels=max_panels)
+
+    def plot_time_order(self, path):
+        """PNG at ``path``: the residual in time order, before and after the selected
+        effects; written atomically. Returns the figure."""
+        from ._report import plot_time_order
+
+        return plot_time_order(self, path)
 
 
 def _candidate_rows(rows: list[dict]) -> list[dict]:

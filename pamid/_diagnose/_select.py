@@ -108,11 +108,14 @@ def forward_select(
     max_effects: int = 4,
     progress: Callable[[str], None] | None = None,
     unphysical: Callable[[SetFit, str], str | None] | None = None,
+    refresh: Callable[[SetFit], None] | None = None,
 ) -> dict:
     """Run the forward selection; return the baseline, the steps and the final fit.
 
     ``unphysical(fit, name)``: why effect ``name``'s constants in ``fit`` are not physical,
-    or None; such a candidate is not significant."""
+    or None; such a candidate is not significant. ``refresh(fit)``: called with the fit of
+    the effects selected so far before the remaining candidates are refitted on top of it
+    (a family may choose its candidates' grid constants again on that fit's residual)."""
     say = progress or (lambda _msg: None)
     selected: tuple[str, ...] = ()
     say("fitting the baseline and every candidate")
@@ -154,6 +157,8 @@ def forward_select(
         if not remaining:
             break
         say(f"added {choice['effect']}; refitting {len(remaining)} candidates on top")
+        if refresh is not None:
+            refresh(current)
         fits = evaluate([(*selected, c) for c in remaining])
     dropped = []
     while selected:

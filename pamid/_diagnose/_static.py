@@ -52,6 +52,7 @@ from .._effects._definitions import (
     FileContext,
     MuscleContext,
     moving_steps,
+    rod_steps,
     time_since_step,
     transforms,
 )
@@ -75,6 +76,12 @@ ATOL_N = 1e-9
 #: A covariate's Legendre term lies in the base model when least squares on the model's
 #: Jacobian columns reproduces it to this fraction of its norm (:func:`degrees_in_model`).
 IN_MODEL_RTOL = 1e-8
+#: Fewest effect-constant slots of a lane: the first step of a forward selection (one
+#: effect, at most 3 constants) and the second (two effects, at most 6) then share one
+#: compiled shape; the unused slots are masked and cost little.
+MIN_SLOTS = 8
+#: Fewest columns of the feature matrix (padded to a power of two, see ``_fill_features``).
+MIN_FEATURES = 16
 
 
 def degrees_in_model(spec: ModelSpec, theta, x, frame: pd.DataFrame, covariates,
@@ -142,6 +149,39 @@ def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFr
     return out
 
 
+#: Why a column that only counts rows is not a covariate (:func:`row_counters`).
+ROW_COUNTER_WHY = ("whole numbers that rise from each row to the next within every trial of "
+                   "every muscle: a row or sample counter (an index), not a measurement")
+
+
+def row_counters(frames: list[pd.DataFrame], trials: list[np.ndarray],
+                 columns) -> dict[str, str]:
+    """The ``columns`` that only count rows, with why: whole numbers that rise strictly from
+    each row to the next within every trial of every muscle (``frames``: one muscle's rows
+    each, in file order; ``trials``: their trial index), in a file where some trial has at
+    least three rows. Such a column (a sample index, the row number in a source file, a
+    logger's tick count) is known before any measurement is made: a smooth function of it
+    is a function of the sample order, which ``elapsed_s`` and the time order already
+    cover, and it may not be offered as a physical covariate. Decided by measurement, not
+    by the column's name."""
+    out = {}
+    longest = max((int(np.bincount(t).max()) for t in trials if len(t)), default=0)
+    if longest < 3:
+        return out
+    for c in columns:
+        counter = True
+        for f, t in zip(frames, trials, strict=True):
+            v = f[c].to_numpy(float) if c in f else np.array([np.nan])
+            same = np.asarray(t[1:]) == np.asarray(t[:-1])
+            if (not np.all(np.isfinite(v)) or np.any(v != np.round(v))
+                    or np.any(np.diff(v)[same] <= 0)):
+                counter = False
+                break
+        if counter:
+            out[c] = ROW_COUNTER_WHY
+    return out
+
+
 def _muscle_rows(bench) -> list[np.ndarray]:
     """Row positions of each muscle of a bench file, in the order of ``bench.muscles``."""
     idx = bench.frame.groupby("muscle", sort=False).indices
@@ -164,6 +204,9 @@ class StaticProblem:
             muscle_curves.append(c)
         self.frames = frames
         allrows = pd.concat(frames, ignore_index=True)
+        #: Numeric columns of the file not offered as covariates, with why.
+        self.not_covariates = row_counters(frames, [c.trial for c in muscle_curves],
+                                           [c for c in bench.covariates if c in allrows])
         self.covariates = self._covariate_names(allrows)
         groups = [(spec.x_from_frame(f, bench.path), f["force_N"].to_numpy(float))
                   for f in frames]
@@ -180,29 +223,27 @@ class StaticProblem:
                         for i, (f, c, (x, _)) in enumerate(zip(frames, muscle_curves, groups,
                                                                strict=True))]
         self.effects = self._effects()
+        self._groups = groups
         self._choose_grids(groups)
-        feats, folds = [], []
-        for i, (f, c) in enumerate(zip(frames, muscle_curves, strict=True)):
+        folds = []
+        self._clips = []
+        for f, c in zip(frames, muscle_curves, strict=True):
             fold = _diagnosis_folds(c.curve, c.trial, n_folds)
             folds.append(fold)
             # Features for all data, then for each fold with the covariates clamped to the
             # range of that fold's training samples: a held-out curve beyond that range is
             # predicted at the range's edge rather than by extrapolating a polynomial.
-            per_fold = [self._features(i)]
+            clips = [None]
             for k in range(int(fold.max()) + 1):
                 train = f[fold != k]
-                clip = {c: (float(train[c].min()), float(train[c].max()))
-                        for c in self.covariates if c in train}
-                per_fold.append(self._features(i, clip))
-            feats.append(per_fold)
+                clips.append({c: (float(train[c].min()), float(train[c].max()))
+                              for c in self.covariates if c in train})
+            self._clips.append(clips)
         m, n = self.data.y.shape
-        self.n_folds = max(len(ft) for ft in feats) - 1
-        self.n_features = feats[0][0].shape[1]
-        self.features = np.zeros((m, self.n_folds + 1, n, self.n_features))
+        self.n_folds = max(len(c) for c in self._clips) - 1
+        self._fill_features()
         self.fold = np.full((m, n), -1)
-        for i, (ft, fo) in enumerate(zip(feats, folds, strict=True)):
-            for k, fk in enumerate(ft):
-                self.features[i, k, : len(fk)] = fk
+        for i, fo in enumerate(folds):
             self.fold[i, : len(fo)] = fo
         curve = np.asarray(self.data.curve)
         self.n_curves = int(curve.max()) + 1
@@ -219,7 +260,7 @@ class StaticProblem:
             if c in rows:
                 names.append(c)
         names += [c for c in self.bench.covariates if c in rows and c not in names
-                  and c not in self.spec.columns]
+                  and c not in self.spec.columns and c not in self.not_covariates]
         return [c for c in names if rows[c].nunique() > 1]
 
     def _file_context(self, rows: pd.DataFrame, muscle_curves) -> FileContext:
@@ -233,6 +274,7 @@ class StaticProblem:
             pressure_max_kPa=float(np.max(np.abs(p))),
             unit_x="%" if self.spec.contraction_column == "contraction_pct" else "mm",
             has_pressure_steps="time_since_step_s" in self.covariates,
+            step_input=_step_input(self.covariates, muscle_curves),
             max_repeat=int(rows["repeat"].max()) if "repeat" in rows else 0,
             distinct={c: int(rows[c].nunique()) for c in self.covariates},
             in_model=degrees_in_model(self.spec, self.theta0[0], self.spec.x_from_frame(
@@ -242,8 +284,15 @@ class StaticProblem:
 
     def _muscle_context(self, i, f, c, x) -> MuscleContext:
         time = c.elapsed_s if np.all(np.isfinite(c.elapsed_s)) else None
-        steps = (moving_steps(f["pressure_kPa"].to_numpy(float), c.moving, c.trial)
-                 if time is not None else np.zeros(len(f)))
+        stepped = self.file.step_input if time is not None else None
+        kcol = self.spec.contraction_column
+        if stepped == "pressure":
+            steps = moving_steps(f["pressure_kPa"].to_numpy(float), c.moving, c.trial)
+        elif stepped == "contraction" and kcol in f:
+            noise = c.noise.get(kcol, np.zeros(len(f)))
+            steps = rod_steps(f[kcol].to_numpy(float), c.moving, c.trial, noise)
+        else:
+            steps = np.zeros(len(f))
         speed = next((s for s in ("speed_mm_s", "speed_pct_s") if s in self.covariates), None)
         base = np.asarray(self.spec.predict(self.theta0[i], x))
         i_p, per_kpa = _inputs(self.spec)["pressure"]
@@ -253,9 +302,16 @@ class StaticProblem:
             up[i_p] = np.asarray(x[i_p]) + per_kpa
             slope = float(np.max(np.asarray(self.spec.predict(self.theta0[i], tuple(up)))
                                  - base))
+        step_slope = None
+        if stepped == "contraction" and kcol in f:
+            # ∂F/∂κ per unit of the file's contraction, by a difference of 0.01 unit
+            up = self.spec.x_from_frame(f.assign(**{kcol: f[kcol] + 0.01}))
+            d = (np.asarray(self.spec.predict(self.theta0[i], up)) - base) / 0.01
+            step_slope = float(d[np.argmax(np.abs(d))]) if len(d) else None
         return MuscleContext(
             frame=f, baseline_N=base, steps=steps, trial=np.asarray(c.trial), time_s=time,
-            file=self.file, speed=speed, l0_mm=self.l0_mm[i], max_dF_dp_N_per_kPa=slope)
+            file=self.file, speed=speed, l0_mm=self.l0_mm[i], max_dF_dp_N_per_kPa=slope,
+            step_slope=step_slope)
 
     def _effects(self) -> list[Effect]:
         """The registry's effects (:data:`pamid._effects._definitions.STATIC_EFFECTS`) that
@@ -275,20 +331,59 @@ class StaticProblem:
         self.grid_value = {e.name: [1.0] * len(self.frames) for e in effects if e.grid}
         return effects
 
-    def _choose_grids(self, groups) -> None:
+    def _fill_features(self) -> None:
+        """The feature matrix (muscle, fold + 1, sample, feature) of every linear effect."""
+        m, n = self.data.y.shape
+        feats = [[self._features(i, clip) for clip in clips]
+                 for i, clips in enumerate(self._clips)]
+        self.n_features = feats[0][0].shape[1]
+        # Padded with unused zero columns to a power of two (at least MIN_FEATURES): files
+        # whose covariates differ a little (a temperature column more) share the compiled
+        # lanes, whose shape includes the feature matrix's.
+        width = max(MIN_FEATURES, 1 << max(self.n_features - 1, 0).bit_length())
+        self.features = np.zeros((m, self.n_folds + 1, n, width))
+        for i, ft in enumerate(feats):
+            for k, fk in enumerate(ft):
+                self.features[i, k, : len(fk), : fk.shape[1]] = fk
+        self._shared = None  # the device's copy is made again from these
+
+    def refresh_grids(self, fit: SetFit) -> None:
+        """Choose again, on the residual of ``fit`` (the effects selected so far), the grid
+        constants of the effects not in it, and rebuild their features. A grid value chosen
+        on the baseline's residual may fit another effect's leftover instead of its own
+        (the softening's r chosen while a drift is still in the residual); the effects in
+        ``fit`` keep theirs. Called by the forward selection after each step."""
+        todo = [e.name for e in self.effects if e.grid is not None and e.name not in fit.effects]
+        if not todo:
+            return
+        old = {name: list(self.grid_value[name]) for name in todo}
+        self._choose_grids(self._groups, fit, todo)
+        if any(old[name] != self.grid_value[name] for name in todo):
+            self._fill_features()
+
+    def _choose_grids(self, groups, fit: SetFit | None = None,
+                      names: list[str] | None = None) -> None:
         """Per muscle, the grid constant of each effect that has one (the transient's τ,
         the softening's r): the grid value whose column, of the allowed sign, best explains
-        the baseline's residual once the base model's own directions are projected out."""
+        the baseline's residual (or that of ``fit``, for the effects ``names``) once the
+        base model's own directions (and ``fit``'s linear effects') are projected out."""
         for e in self.effects:
-            if e.grid is None:
+            if e.grid is None or (names is not None and e.name not in names):
                 continue
             lower = e.definition.constants[0].lower
             for i, (m, (x, y)) in enumerate(zip(self.muscles, groups, strict=True)):
                 values = np.atleast_1d(e.definition.grid_values(self.file, m))
                 jac = np.asarray(jax.jacfwd(lambda th, x=x: self.spec.predict(th, x))(
                     self.theta0[i]))
-                q, _ = np.linalg.qr(np.column_stack([jac, np.ones(len(y))]))
-                r = y - m.baseline_N
+                cols = [jac, np.ones(len(y))[:, None]]
+                if fit is None:
+                    r = y - m.baseline_N
+                else:
+                    r = np.asarray(fit.extra["residual"][i][: len(y)], float)
+                    slots = fit.extra["slots"]
+                    if slots:
+                        cols.append(self.features[i, 0, : len(y)][:, slots])
+                q, _ = np.linalg.qr(np.column_stack(cols))
                 r = r - q @ (q.T @ r)
                 best, best_gain, best_any, any_gain = values[0], -1.0, values[0], -1.0
                 for v in values:
@@ -387,7 +482,7 @@ class StaticProblem:
         k = self.spec.n_params
         slots = [[c for name in s for c in self.effect(name).columns] for s in sets]
         n_tr = len(transforms())
-        n_slots = max(1, max(len(s) for s in slots))
+        n_slots = max(MIN_SLOTS, max(len(s) for s in slots))
         n_slots = 1 << (n_slots - 1).bit_length()  # buckets: fewer shapes to compile
         folds = self.n_folds + 1
         lanes_set, lanes_muscle, lanes_fold = np.meshgrid(
@@ -466,6 +561,18 @@ class StaticProblem:
                             jnp.asarray(self.data.y), jnp.asarray(self.data.w),
                             jnp.asarray(self.fold), jnp.asarray(self.features))
         return self._shared
+
+
+def _step_input(covariates, muscle_curves) -> str | None:
+    """Which input the ``transient`` follows (:attr:`pamid._effects._definitions.FileContext.
+    step_input`): the pressure where it moves in steps at a held length in some trial, else
+    the contraction where every trial of every muscle is a sweep at held pressures (the rod
+    steps at every point); None without time."""
+    if "time_since_step_s" in covariates:
+        return "pressure"
+    if "elapsed_s" in covariates and all((c.moving == 0).all() for c in muscle_curves):
+        return "contraction"
+    return None
 
 
 def _diagnosis_folds(curve: np.ndarray, trial: np.ndarray, n_folds: int) -> np.ndarray:

@@ -114,6 +114,15 @@ class FileContext:
     distinct: dict[str, int]
     #: Per covariate, the Legendre degrees the base model already contains.
     in_model: dict[str, tuple[int, ...]] = dataclasses.field(default_factory=dict)
+    #: The input whose steps the ``transient`` follows: "pressure" where the pressure moves
+    #: in steps at a held length (isometric tests), "contraction" where the rod steps the
+    #: length at a held pressure in every trial (Sárosi's sweeps), None without time.
+    step_input: str | None = None
+
+    @property
+    def step_unit(self) -> str:
+        """The unit of a step of :attr:`step_input`: kPa, or the contraction's % or mm."""
+        return "kPa" if self.step_input == "pressure" else self.unit_x
 
 
 @dataclasses.dataclass
@@ -130,6 +139,9 @@ class MuscleContext:
     l0_mm: float | None = None
     #: The largest ∂F_model/∂p over the muscle's rows (N/kPa), at the baseline constants.
     max_dF_dp_N_per_kPa: float = math.inf
+    #: ∂F_model/∂(the stepped input) of the largest magnitude over the muscle's rows, with
+    #: its sign (N per kPa, or per % or mm of contraction); None: that of the pressure.
+    step_slope: float | None = None
 
     @property
     def p_bar(self) -> np.ndarray:
@@ -144,8 +156,12 @@ class EffectDefinition:
         name: its name in reports ("hysteresis").
         covariates: columns it needs, all varying in the file (alternatives: the first
             present is used for the covariate it is traced to).
-        constants: the fitted constants, in order (for a feature effect, one per column).
-        injector: the virtual bench's injector that hides it in data (dotted name).
+        constants: the fitted constants, in order (for a feature effect, one per column);
+            a unit's ``{x}`` is the contraction's unit, ``{step}`` that of the stepped input.
+        injector: the virtual bench's injectors that hide it in data (dotted names, one or
+            a tuple): an ``Injected*`` class of :mod:`pamid._effects._inject` works in both
+            protocols' ``effects``; a protocol field names where that protocol has its own.
+            :attr:`injectors` gives them as a tuple.
         features: ``features(muscle, col, grid_value) -> list of columns`` (N per unit of
             each constant); ``col(name)`` reads a covariate (clamped to a fold's range).
         transform: ``transform(x, value, force, io) -> x``: the model's inputs as the
@@ -162,7 +178,7 @@ class EffectDefinition:
     name: str
     covariates: tuple[str, ...]
     constants: tuple[Constant, ...]
-    injector: str
+    injector: str | tuple[str, ...]
     features: Callable | None = None
     transform: Callable | None = None
     implicit: bool = False
@@ -171,6 +187,11 @@ class EffectDefinition:
     applies: Callable | None = None
     check: Callable | None = None
     family: Callable | None = None
+
+    @property
+    def injectors(self) -> tuple[str, ...]:
+        """The dotted names of :attr:`injector`, as a tuple."""
+        return (self.injector,) if isinstance(self.injector, str) else tuple(self.injector)
 
     def members(self, file: FileContext) -> list[tuple[str, str, tuple[Constant, ...]]]:
         """(name, covariate, constants) of every effect of this definition in ``file``."""
@@ -181,8 +202,8 @@ class EffectDefinition:
             return []
         if self.applies is not None and not self.applies(file):
             return []
-        unit_x = file.unit_x
-        consts = tuple(dataclasses.replace(c, unit=c.unit.format(x=unit_x))
+        consts = tuple(dataclasses.replace(c, unit=c.unit.format(x=file.unit_x,
+                                                                 step=file.step_unit))
                        for c in self.constants)
         return [(self.name, present[0] if present else "force_N", consts)]
 
@@ -246,6 +267,22 @@ def moving_steps(pressure_kPa: np.ndarray, moving: np.ndarray, trial: np.ndarray
     return np.where(np.abs(dp) > max(STEP_SIGMAS * sigma, floor), dp, 0.0)
 
 
+def rod_steps(contraction: np.ndarray, moving: np.ndarray, trial: np.ndarray,
+              noise: np.ndarray | float) -> np.ndarray:
+    """The steps of the moving contraction (in its unit) at each sample of one muscle, 0
+    elsewhere: a change from the previous sample of the same trial, where the contraction
+    moves (``moving == 0``, Sárosi's sweeps: the rod steps at every point), larger than
+    :data:`STEP_SIGMAS` times the contraction's noise (``noise``: the curve finder's
+    estimate, :attr:`pamid._data._curves.Curves.noise`). Every point of a sweep is a step,
+    so the robust spread of the changes (:func:`moving_steps`) cannot measure the noise
+    here."""
+    dk = np.diff(contraction, prepend=contraction[:1])
+    same = np.r_[False, trial[1:] == trial[:-1]] & (moving == 0)
+    floor = 1e-9 * (np.max(np.abs(contraction)) + 1.0) if len(contraction) else 0.0
+    return np.where(same & (np.abs(dk) > np.maximum(STEP_SIGMAS * np.asarray(noise), floor)),
+                    dk, 0.0)
+
+
 def time_since_step(steps: np.ndarray, time_s: np.ndarray, trial: np.ndarray) -> np.ndarray:
     """Time since the last step of the moving input in the same trial (since the trial's
     first sample where none came yet), in s."""
@@ -300,7 +337,9 @@ def _hysteresis() -> EffectDefinition:
     return EffectDefinition(
         name="hysteresis", covariates=("direction",),
         constants=(Constant("h0", "N"), Constant("h1", "N/bar")),
-        injector="pamid._effects._inject.InjectedHysteresis",
+        injector=("pamid._effects._inject.InjectedHysteresis",
+                  "pamid._virtual._isometric.IsometricProtocol.hysteresis_N_at_3_bar",
+                  "pamid._virtual._sweeps.SarosiProtocol.hysteresis_N_per_bar"),
         features=lambda m, col, g: [-col("direction"), -col("direction") * m.p_bar],
         check=_hysteresis_check,
     )
@@ -367,16 +406,29 @@ def _transient_grid(file, muscle):
 
 def _transient_check(values, file, muscle):
     g = values["g"]
-    bound = muscle.max_dF_dp_N_per_kPa if muscle is not None else math.inf
-    if g <= -bound:
-        return (f"transient would need g = {g:.3g} N/kPa ≤ −{bound:.3g} N/kPa (a lag of "
-                "more than the whole step: the force would move against the pressure): "
-                "not physical")
+    if muscle is None:
+        return None
+    slope = muscle.step_slope
+    if slope is None:
+        slope = muscle.max_dF_dp_N_per_kPa
+    if not np.isfinite(slope) or slope == 0:
+        return None
+    unit = "N/kPa" if file is None else f"N/{file.step_unit}"
+    what = "pressure" if file is None or file.step_input == "pressure" else "rod's step"
+    if g * np.sign(slope) <= -abs(slope):
+        return (f"transient would need g = {g:.3g} {unit} {'≤' if slope > 0 else '≥'} "
+                f"{-slope:.3g} {unit} (a lag of more than the whole step: the force would "
+                f"move against the {what}): not physical")
     return None
 
 
 def _transient() -> EffectDefinition:
-    """Force relaxation after each step of the moving pressure: g·Σ_k Δp_k·e^(−(t − t_k)/τ).
+    """Force relaxation after each step of the moving input: g·Σ_k Δu_k·e^(−(t − t_k)/τ).
+
+    u is the input that moves in steps: the pressure at a held length (isometric tests:
+    valve pulses; g in N/kPa), or, in a file whose every trial is a sweep at held
+    pressures (Sárosi's protocol), the contraction that the rod steps point by point (g
+    in N/% or N/mm; :func:`rod_steps`). The same first-order relaxation follows either.
 
     Physical reason: the bladder's rubber is viscoelastic; a step of the pressure first
     loads it with its instantaneous (glassy) modulus, and the force relaxes towards the
@@ -387,22 +439,26 @@ def _transient() -> EffectDefinition:
     overshoots in the direction of the step, g > 0. The opposite sign is physical too: where
     the sensor sits upstream of the muscle (at the valve), the muscle's own pressure follows
     the logged one through the tubing with a first-order lag (a pneumatic RC), and the force
-    lags, g < 0 — but never by more than the whole step: g ≥ −max ∂F_model/∂p. τ > 0.
+    lags, g < 0 — but never by more than the whole step: g ≥ −max ∂F_model/∂p (for the
+    rod's steps, where ∂F/∂κ < 0: g ≤ max |∂F_model/∂κ|). τ > 0.
     The AARL 10 mm file
     (``../shared/data/README.md``) shows such a transient at every valve pulse. The
     covariate is the time since the last step of the moving input, within its trial
     (:func:`time_since_step`); τ is chosen over a grid of multiples of the sample interval.
-    Injector: ``IsometricProtocol.transient_N_per_kPa`` / ``transient_tau_s``
-    (:mod:`pamid._virtual._isometric`).
+    Injectors: ``IsometricProtocol.transient_N_per_kPa`` / ``transient_tau_s``
+    (:mod:`pamid._virtual._isometric`), ``SarosiProtocol.transient_N_per_pct`` /
+    ``transient_tau_s`` (:mod:`pamid._virtual._sweeps`).
     """
     return EffectDefinition(
-        name="transient", covariates=("time_since_step_s",),
-        constants=(Constant("g", "N/kPa", meaning="overshoot (> 0) or lag (< 0) per kPa"),),
-        injector="pamid._virtual._isometric.IsometricProtocol.transient_N_per_kPa",
+        name="transient", covariates=("time_since_step_s", "elapsed_s"),
+        constants=(Constant("g", "N/{step}",
+                            meaning="relaxation per unit of step, either sign (see the text)"),),
+        injector=("pamid._virtual._isometric.IsometricProtocol.transient_N_per_kPa",
+                  "pamid._virtual._sweeps.SarosiProtocol.transient_N_per_pct"),
         check=_transient_check,
         features=lambda m, col, tau: [_relaxation(m.steps, m.time_s, m.trial, tau)],
         grid=Constant("tau_s", "s", lower=0.0), grid_values=_transient_grid,
-        applies=lambda f: f.has_pressure_steps,
+        applies=lambda f: f.step_input is not None,
     )
 
 
@@ -414,13 +470,16 @@ def _softening() -> EffectDefinition:
     first few cycles (Mullins, Rubber Chem. Technol. 42:339–362, 1969; Diani, Fayolle and
     Gilormini, "A review on the Mullins effect", Eur. Polym. J. 45:601–612, 2009). A loss
     of force: 0 ≤ s < 1; r > 0 (in repeats) is chosen over a grid. F_model is the baseline
-    fit. Injector: ``IsometricProtocol.softening`` / ``softening_repeats``
-    (:mod:`pamid._virtual._isometric`).
+    fit. The covariate is the repeat index (:attr:`pamid._data._curves.Curves.repeat`: a
+    trial's order among the muscle's trials of the same setting, or the cycle). Injectors:
+    ``IsometricProtocol.softening`` / ``softening_repeats`` (:mod:`pamid._virtual._isometric`),
+    ``SarosiProtocol.softening`` / ``softening_repeats`` (:mod:`pamid._virtual._sweeps`).
     """
     return EffectDefinition(
         name="softening", covariates=("repeat",),
         constants=(Constant("s", "1", lower=0.0, upper=1.0, meaning="share of force lost"),),
-        injector="pamid._virtual._isometric.IsometricProtocol.softening",
+        injector=("pamid._virtual._isometric.IsometricProtocol.softening",
+                  "pamid._virtual._sweeps.SarosiProtocol.softening"),
         features=lambda m, col, r: [-(1.0 - np.exp(-m.frame["repeat"].to_numpy(float) / r))
                                     * m.baseline_N],
         grid=Constant("r", "repeats", lower=0.0),
@@ -501,12 +560,14 @@ def _sensor_offset() -> EffectDefinition:
     (``../shared/data/README.md``), i.e. δ ≈ −8 kPa. |δ| must stay below
     :data:`MAX_OFFSET_SHARE` of the largest logged pressure. Identifiable only where the
     force law is not affine in p at every length (Sárosi eq. 2.1: through the a4·κ·p term).
-    Injector: ``IsometricProtocol.pressure_offset_kPa`` (:mod:`pamid._virtual._isometric`).
+    Injectors: ``IsometricProtocol.pressure_offset_kPa`` (:mod:`pamid._virtual._isometric`),
+    ``SarosiProtocol.pressure_offset_kPa`` (:mod:`pamid._virtual._sweeps`).
     """
     return EffectDefinition(
         name="sensor_offset", covariates=(),
         constants=(Constant("delta_kPa", "kPa", bounds=_offset_bounds),),
-        injector="pamid._virtual._isometric.IsometricProtocol.pressure_offset_kPa",
+        injector=("pamid._virtual._isometric.IsometricProtocol.pressure_offset_kPa",
+                  "pamid._virtual._sweeps.SarosiProtocol.pressure_offset_kPa"),
         transform=_offset_transform,
         applies=lambda f: "pressure_kPa" in f.spec.columns)
 
@@ -559,6 +620,6 @@ DECAY_EFFECTS: tuple[DecayEffect, ...] = (
         "(dissipation)."),
     DecayEffect(
         "drift", "elapsed_s", "drift_rad_s", "drift_rad_s", Constant("drift_rad_s", "rad/s"),
-        None,  # the virtual decay bench has no moving equilibrium yet
+        "pamid._virtual._decay.simulate_decays (drift_rad_s=)",
         "An equilibrium that moves with time, β_eq + r·t (a slow leak); either sign."),
 )

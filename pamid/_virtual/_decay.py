@@ -159,6 +159,7 @@ def simulate_decays(
     protocol: DecayProtocol = DecayProtocol(),
     *,
     coulomb_Nm: float = 0.0,
+    drift_rad_s: float = 0.0,
 ) -> pd.DataFrame:
     """Simulate ``protocol.n_trials`` free decays as the encoder records them.
 
@@ -168,6 +169,10 @@ def simulate_decays(
             :meth:`DampedOscillator.from_modal` builds it from ζ and f_n.
         protocol: the release, the sampling and the sensor.
         coulomb_Nm: Coulomb friction torque T_c ≥ 0 (hidden from the viscous model).
+        drift_rad_s: an equilibrium that moves after the release, β_eq + r·t (a slow leak,
+            a creeping set point; hidden from the model): the arm oscillates about the moving
+            line, released at the deflection from it with the release rate relative to it
+            (the ``drift`` effect of :data:`pamid._effects._definitions.DECAY_EFFECTS`).
 
     Returns:
         A table in the decay-file format: ``trial`` (1, 2, …), ``time_s``, ``angle_rad`` or
@@ -175,6 +180,8 @@ def simulate_decays(
     """
     if coulomb_Nm < 0:
         raise ValueError(f"coulomb_Nm must be ≥ 0, got {coulomb_Nm}")
+    if not math.isfinite(drift_rad_s):
+        raise ValueError(f"drift_rad_s must be finite, got {drift_rad_s}")
     n_trials = protocol.n_trials
     fields = {
         name: np.broadcast_to(np.asarray(getattr(oscillator, name), float), (n_trials,))
@@ -193,11 +200,12 @@ def simulate_decays(
     for i in range(n_trials):
         deflection = math.radians(protocol.deflections_deg[i % len(protocol.deflections_deg)])
         eq = fields["equilibrium_rad"][i]
+        t_free = dt * np.arange(n_free)
         free = coulomb_decay(
             fields["inertia_kg_m2"][i], fields["stiffness_Nm_per_rad"][i],
             fields["damping_Nms_per_rad"][i], eq, coulomb_Nm, eq + deflection,
-            protocol.release_rate_rad_s, dt * np.arange(n_free),
-        )
+            protocol.release_rate_rad_s - drift_rad_s, t_free,
+        ) + drift_rad_s * t_free
         angle = np.concatenate([np.full(n_hold, eq + deflection), free]) + noise[i]
         if q > 0:
             angle = np.round(angle / q) * q

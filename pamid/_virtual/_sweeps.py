@@ -61,6 +61,16 @@ class SarosiProtocol:
             deviation of one reading in % of l0; the muscle stays where the rod holds it.
         trials: write every cycle as its own trial (a ``trial`` column "T1", "T2", …) whose
             ``time_s`` restarts at 0, as a logger that writes one record per run does.
+        transient_N_per_pct, transient_tau_s: the force's relaxation after every step of
+            the rod: g·Σ_k Δκ_k·exp(−(t − t_k)/τ) over the cycle's earlier steps Δκ_k (in %
+            of l0), the rod moving halfway between two samples (a standard linear solid's
+            response to a step of strain; Zener 1948). g < 0 is an overshoot of the force's
+            own change (the force falls as the muscle contracts).
+        softening, softening_repeats: the Mullins effect: every reading of cycle r (0, 1,
+            …; the r-th of the repeats at a point when they are averaged) is multiplied by
+            1 − s·(1 − exp(−r/r0)), with s = ``softening`` and r0 = ``softening_repeats``.
+        pressure_offset_kPa: what the pressure logger adds to the gauge pressure (a zero
+            offset of the transducer); the file's pressure column carries it.
     """
 
     pressures_kPa: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0)
@@ -82,6 +92,11 @@ class SarosiProtocol:
     pressure_resolution_kPa: float = 0.0
     contraction_noise_pct: float = 0.0
     trials: bool = False
+    transient_N_per_pct: float = 0.0
+    transient_tau_s: float = 1.0
+    softening: float = 0.0
+    softening_repeats: float = 1.0
+    pressure_offset_kPa: float = 0.0
 
     def __post_init__(self):
         if self.points_per_curve < 2:
@@ -99,6 +114,14 @@ class SarosiProtocol:
         for name in ("pressure_noise_kPa", "pressure_resolution_kPa", "contraction_noise_pct"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be zero or positive, got {getattr(self, name)}")
+        for name in ("transient_tau_s", "softening_repeats"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("transient_N_per_pct", "pressure_offset_kPa"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"{name} must be finite, got {getattr(self, name)}")
+        if not 0 <= self.softening < 1:
+            raise ValueError(f"softening must lie in 0 … 1 (a fraction), got {self.softening}")
 
 
 def _quantize(x, step):
@@ -190,6 +213,15 @@ def simulate_sarosi_bench(
     time = starts.reshape(spp.shape) + spp * np.arange(n_points)  # (C, 1, P, D, K)
     time = np.broadcast_to(time, (len(cycles), n_muscles, *time.shape[2:]))
 
+    f_true = f_true[None]  # (1, M, P, D, K); a cycle axis where the cycles differ
+    if protocol.transient_N_per_pct:
+        f_true = f_true + protocol.transient_N_per_pct * _rod_relaxation(
+            kappa_true_read, time, protocol.transient_tau_s)
+    if protocol.softening:  # per reading r: the r-th cycle, or the r-th of averaged repeats
+        r = np.arange(protocol.repeats, dtype=float).reshape(-1, 1, 1, 1, 1)
+        f_true = f_true * (1.0 - protocol.softening * (
+            1.0 - np.exp(-r / protocol.softening_repeats)))
+
     extra_columns: dict[str, np.ndarray] = {}
     force_effects = [e for e in protocol.effects if not isinstance(e, InjectedCompliance)]
     if force_effects:
@@ -197,14 +229,12 @@ def simulate_sarosi_bench(
         seed = int(jax.random.randint(effect_key, (), 0, 2**31 - 1))
         ctx = _effect_context(protocol, p_grid, kappa_true, ends, spp, time, direction, seed)
         added, extra_columns = apply_effects(force_effects, ctx, time.shape)
-        f_true = f_true[None] + added  # (C, M, P, D, K)
+        f_true = f_true + added  # (C, M, P, D, K)
 
     noise = protocol.noise_sd_N * np.asarray(
         jax.random.normal(key, (n_rep, *kappa_true.shape), dtype=jnp.float64)
     )
-    readings = _quantize(
-        (f_true if f_true.ndim == 5 else f_true[None]) + noise, protocol.force_resolution_N
-    )  # (R, M, P, D, K)
+    readings = _quantize(f_true + noise, protocol.force_resolution_N)  # (R, M, P, D, K)
     if protocol.average_repeats:
         readings = readings.mean(axis=0, keepdims=True)
 
@@ -212,11 +242,13 @@ def simulate_sarosi_bench(
     # points); each reading is noisy and quantized, averaged like the force.
     reading_shape = (n_rep, *kappa_true.shape)
     pressure_log = None  # None: the file gives the set points
-    if protocol.pressure_noise_kPa > 0 or protocol.pressure_resolution_kPa > 0:
+    if (protocol.pressure_noise_kPa > 0 or protocol.pressure_resolution_kPa > 0
+            or protocol.pressure_offset_kPa != 0):
         pressure_log = _read_sensor(
             jax.random.fold_in(key, 1),
             np.broadcast_to(
-                np.asarray(protocol.pressures_kPa, float)[None, None, :, None, None],
+                np.asarray(protocol.pressures_kPa, float)[None, None, :, None, None]
+                + protocol.pressure_offset_kPa,
                 reading_shape,
             ),
             protocol.pressure_noise_kPa,
@@ -272,6 +304,26 @@ def _sweep_seconds(protocol: SarosiProtocol, n_sweeps: int) -> np.ndarray:
         return np.full(n_sweeps, protocol.seconds_per_point)
     durations = np.asarray(protocol.sweep_seconds_per_point, float)
     return durations[np.arange(n_sweeps) % len(durations)]
+
+
+def _rod_relaxation(kappa_pct, time, tau_s):
+    """Σ_k Δκ_k·exp(−(t − t_k)/τ) at every sample: the first-order relaxation of every
+    earlier step Δκ_k of the rod within the sample's cycle, the rod moving halfway between
+    two samples (t_k). ``kappa_pct`` (M, P, D, K) is the contraction the rod holds,
+    ``time`` (C, M, P, D, K) the samples' times; returns (C, M, P, D, K)."""
+    c_n, m_n = time.shape[:2]
+    t = time.reshape(c_n, m_n, -1)  # the cycle's samples in time order
+    k = np.broadcast_to(kappa_pct[None], time.shape).reshape(c_n, m_n, -1)
+    dk = np.diff(k, axis=-1, prepend=k[..., :1])
+    dt = np.diff(t, axis=-1, prepend=t[..., :1])
+    # Between samples n − 1 and n the earlier relaxations decay by exp(−Δt/τ), and the
+    # step Δκ_n, made Δt/2 before sample n, has decayed by exp(−Δt/(2τ)).
+    out = np.zeros_like(t)
+    y = np.zeros(t.shape[:2])
+    for n in range(t.shape[-1]):
+        y = np.exp(-dt[..., n] / tau_s) * y + dk[..., n] * np.exp(-0.5 * dt[..., n] / tau_s)
+        out[..., n] = y
+    return out.reshape(time.shape)
 
 
 def _compliant_contraction(batched, p_bar, kappa_read, mm_per_N, l0_mm):
