@@ -260,7 +260,7 @@ def _vmapped(predict: Callable) -> Callable:
     return jax.jit(jax.vmap(predict))
 
 
-def _predict_lanes(spec: ModelSpec, theta, x) -> np.ndarray:
+def predict_lanes(spec: ModelSpec, theta, x) -> np.ndarray:
     """The model of every lane at its own constants, in chunks of lanes."""
     return map_lanes(_vmapped(spec.predict), jnp.asarray(theta, dtype=jnp.float64), x)
 
@@ -285,7 +285,7 @@ def fit_with_folds(bench: BenchData, spec: ModelSpec, plan: FoldPlan, *,
     fold_theta = np.where(has_fold[..., None], theta[:, 1:], np.nan)
     fold_ok = ok[:, 1:] & has_fold
     # Held-out error: each lane's prediction on the rows of its own fold only.
-    pred = np.asarray(_predict_lanes(spec, lane_fit.theta, lanes.x)).reshape(m, reps, n)
+    pred = np.asarray(predict_lanes(spec, lane_fit.theta, lanes.x)).reshape(m, reps, n)
     w = np.asarray(data.w)
     held = (plan.fold[:, None, :] == np.arange(reps - 1)[None, :, None]) & has_fold[..., None]
     with np.errstate(invalid="ignore", over="ignore"):
