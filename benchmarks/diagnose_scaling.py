@@ -44,8 +44,7 @@ MAKE = r"""
 import sys
 import jax
 import pamid
-from pamid._effects._inject import (InjectedCompliance, InjectedHysteresis,
-                                          InjectedTemperature)
+from pamid import InjectedCompliance, InjectedHysteresis, InjectedTemperature
 rows, path = int(sys.argv[1]), sys.argv[2]
 points = max(2, rows // 100)
 proto = pamid.SarosiProtocol(
@@ -53,7 +52,7 @@ proto = pamid.SarosiProtocol(
     seconds_per_point=200.0 / points,
     effects=(InjectedHysteresis(N_at_3_bar=9.0), InjectedTemperature(),
              InjectedCompliance(mm_per_N=0.002)))
-frame = pamid.simulate_sarosi_bench(jax.random.key(0), pamid.table_3_1(), proto)
+frame = pamid.simulate_sarosi_bench(jax.random.key(0), pamid.sarosi.table_3_1(), proto)
 frame.to_csv(path, index=False)
 print(len(frame))
 """

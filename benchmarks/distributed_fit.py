@@ -119,13 +119,13 @@ def simulate(path: Path, n_muscles: int, seed: int) -> None:
     import numpy as np
 
     import pamid
-    from pamid._io import write_frame_atomic
+    from pamid.io import write_frame_atomic
 
     if path.exists():
         raise SystemExit(f"{path} exists; not overwriting it")
     key_theta, key_noise = jax.random.split(jax.random.key(seed))
     z = np.asarray(jax.random.normal(key_theta, (n_muscles, 6)))
-    theta = np.asarray(pamid.table_3_1().to_vector()) * (1.0 + 0.03 * z)
+    theta = np.asarray(pamid.sarosi.table_3_1().to_vector()) * (1.0 + 0.03 * z)
     frame = pamid.simulate_sarosi_bench(
         key_noise, pamid.Sarosi.from_vector(theta), pamid.SarosiProtocol(min_force_N=10.0)
     )
@@ -175,7 +175,7 @@ def main(argv=None) -> int:
         )
 
     import pamid
-    from pamid._io import refuse_overwrite_input, write_text_atomic
+    from pamid.io import refuse_overwrite_input, write_text_atomic
 
     refuse_overwrite_input(args.out, [args.bench])
     index, count = jax.process_index(), jax.process_count()

@@ -233,7 +233,7 @@ def main(argv=None) -> int:
     results["loadavg_end"] = os.getloadavg()
     print(f"\nload average at the end {os.getloadavg()[0]:.2f}")
     if args.json:
-        from pamid._io import write_text_atomic
+        from pamid.io import write_text_atomic
 
         write_text_atomic(args.json, json.dumps(results, indent=2) + "\n")
     return 0

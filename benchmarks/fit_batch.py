@@ -81,7 +81,7 @@ from pamid._io import write_text_atomic  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 PROTOCOL = pamid.SarosiProtocol(min_force_N=10.0)
-TABLE_3_1 = np.asarray(pamid.table_3_1().to_vector(), dtype=float)
+TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
 # A fixed generic start, not adapted to the data or to Table 3-1: 100 N and 100 N/bar with
 # an exponential decaying over 10 % of contraction, no bilinear term, no offset. SciPy
 # (trf and lm) and optimistix LM converge from it on every muscle of this data.

@@ -51,7 +51,7 @@ from pamid._io import write_text_atomic  # noqa: E402
 from pamid._sampling import _mcmc, _posterior  # noqa: E402
 
 PROTOCOL = pamid.SarosiProtocol(min_force_N=10.0)
-TABLE_3_1 = np.asarray(pamid.table_3_1().to_vector(), dtype=float)
+TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
 W = 32
 THIN = 10
 

@@ -32,7 +32,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from run import _time_pamid  # noqa: E402
 
-TABLE_3_1 = np.asarray(pamid.table_3_1().to_vector(), dtype=float)
+TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
 
 
 def old_profile(rev: str):

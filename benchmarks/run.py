@@ -167,12 +167,13 @@ def _cullinan_data(n, seed=3):
     import pamid
 
     k_grid, k_theta, k_noise = jax.random.split(jax.random.key(seed), 3)
-    grid = pamid.simulate_braided_pam_bench(k_grid, pamid.braided_pam())
+    grid = pamid.simulate_braided_pam_bench(k_grid, pamid.cullinan.braided_pam())
     p = grid["pressure_kPa"].to_numpy()
     y = grid["contraction_mm"].to_numpy()
-    base = np.asarray(pamid.traditional_pam().to_vector(with_g=False))
+    base = np.asarray(pamid.cullinan.traditional_pam().to_vector(with_g=False))
     theta = base * (1.0 + 0.03 * np.asarray(jax.random.normal(k_theta, (n, 5))))
-    force = np.asarray(pamid.cullinan_force(pamid.Cullinan.from_vector(theta[:, None, :]), p, y))
+    force = np.asarray(pamid.cullinan.cullinan_force(
+        pamid.Cullinan.from_vector(theta[:, None, :]), p, y))
     force = force + 2.0 * np.asarray(jax.random.normal(k_noise, force.shape))
     shape = force.shape
     data = pamid.FitData(
@@ -502,9 +503,9 @@ def make_diagnose_data(n: int, tmp: Path) -> Path:
     import jax
 
     import pamid
-    from pamid._io import write_frame_atomic
+    from pamid.io import write_frame_atomic
 
-    theta = pamid.table_3_1().to_vector()
+    theta = pamid.sarosi.table_3_1().to_vector()
     thetas = theta * (1.0 + 0.03 * jax.random.normal(jax.random.key(11), (n, 6)))
     proto = pamid.SarosiProtocol(min_force_N=10.0, effects=(pamid.InjectedHysteresis(9.0),))
     frame = pamid.simulate_sarosi_bench(jax.random.key(12), pamid.Sarosi.from_vector(thetas), proto)

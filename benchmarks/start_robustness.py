@@ -28,7 +28,7 @@ import numpy as np
 import pamid
 from pamid._fit import _gauss_newton as gn
 
-TABLE_3_1 = np.asarray(pamid.table_3_1().to_vector(), dtype=float)
+TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
 DENSE_GRID = tuple(
     float(s) for s in np.concatenate([-np.geomspace(60.0, 0.02, 40), np.geomspace(0.02, 6.0, 12)])
 )

@@ -24,8 +24,7 @@ from pathlib import Path
 import jax
 
 import pamid
-from pamid._diagnose._report import format_report, plot_residuals, plot_time_order
-from pamid._io import write_text_atomic
+from pamid.io import write_text_atomic
 
 ROOT = Path(__file__).resolve().parents[1]
 MARTENS = ROOT.parent / "shared" / "data" / "martens_dmsp10_250.csv"
@@ -55,7 +54,7 @@ SCENARIOS = [
 
 def run_scenario(name, effects, protocol, seed, folder):
     proto = pamid.SarosiProtocol(min_force_N=10.0, effects=effects, **protocol)
-    frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.table_3_1(), proto)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.sarosi.table_3_1(), proto)
     path = Path(folder) / f"scenario_{seed}.csv"
     frame.to_csv(path, index=False)
     t0 = time.perf_counter()
@@ -73,7 +72,8 @@ def false_positives(n: int) -> dict:
     proto = pamid.SarosiProtocol(min_force_N=10.0)
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(n):
-            frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.table_3_1(), proto)
+            frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.sarosi.table_3_1(),
+                                                proto)
             path = Path(tmp) / f"control_{seed}.csv"
             frame.to_csv(path, index=False)
             d = pamid.diagnose(path)
@@ -118,10 +118,10 @@ def main(argv=None) -> int:
               f"selected an effect, {c['n_unexplained']} listed something as unexplained")
     if MARTENS.is_file():
         d = pamid.diagnose(MARTENS)
-        report = format_report(d)
+        report = d.report()
         write_text_atomic(out / "martens_report.txt", report + "\n")
-        plot_residuals(d, out / "martens_residuals_before_after.png")
-        plot_time_order(d, out / "martens_residual_time_order.png")
+        d.plot_residuals(out / "martens_residuals_before_after.png")
+        d.plot_time_order(out / "martens_residual_time_order.png")
         summary["martens"] = d.to_dict()
         print(f"\nMeasured: {MARTENS.name} ({d.n} uncensored points)")
         print(f"  selected: {', '.join(d.selected) or 'nothing'}; RMSE {d.rmse_before:.3f} → "

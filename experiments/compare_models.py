@@ -11,7 +11,7 @@ Data (next to the repository, skipped when absent; never copied into it):
 
 For each file every model of ``pamid._fit._spec.MODELS`` (whatever is registered when the
 script runs) is fitted to every muscle in one batched solve per model, with its
-cross-validation refits as weighted lanes (:func:`pamid._fit._compare.compare_models`), and
+cross-validation refits as weighted lanes (:func:`pamid.compare_models`), and
 ranked per muscle by CV RMSE and by BIC = n·ln(SSE/n) + p·ln n. Writes, per file,
 ``compare.json``, one PNG of every model against the data per muscle and ``cv_rmse.png``,
 and for all files ``table.md`` (the table of experiments/README.md) and ``summary.json``.
@@ -29,10 +29,13 @@ import warnings
 from pathlib import Path
 
 import pamid
+from pamid import compare_models
+
+# The command line's table and plots (``pamid compare``) and the registry of models: no
+# public names yet (tests/test_public_api.py lists this script as an exception).
 from pamid._commands.compare import format_table, write_plots
-from pamid._fit._compare import compare_models
 from pamid._fit._spec import MODELS
-from pamid._io import write_text_atomic
+from pamid.io import write_text_atomic
 
 NAME = "compare_models"
 ROOT = Path(__file__).resolve().parents[1]

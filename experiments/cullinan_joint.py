@@ -4,7 +4,7 @@
 Source: M. F. Cullinan, C. McGinn, K. Kelly, "Sleeve Pneumatic Artificial Muscles for
 Antagonistically Actuated Joints" (``shared/seeds/``), Figs. 4, 5, 6 and 8.
 
-The muscles are pamid's presets (:mod:`pamid._models._cullinan_presets`): a physical braided
+The muscles are pamid's presets (:mod:`pamid.cullinan`): a physical braided
 muscle (Chou & Hannaford braid, eq. 1 end fittings, neo-Hookean bladder; θ0 30°, bladder
 μ 0.3 MPa, sleeve element 30 mm, dead volume 5 cm³, all ASSUMED) measured on a virtual static
 bench and fitted with eq. 3. The script re-runs that fit, then
@@ -38,18 +38,19 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._io import json_ready, save_figure_atomic, write_text_atomic  # noqa: E402
-from pamid._models import _cullinan_presets as cp  # noqa: E402
-from pamid._models._energy import trajectory_energy_J  # noqa: E402
-from pamid._models._joint import (  # noqa: E402
+from pamid import cullinan as cp  # noqa: E402
+from pamid.cullinan import (  # noqa: E402
     JointGeometry,
+    PamVolume,
     available_torque_Nm,
     closed_system_stiffness,
     max_isobaric_stiffness,
     pressures_for_torque_stiffness_kPa,
+    sleeve_pam_volume,
+    traditional_pam_volume,
+    trajectory_energy_J,
 )
-from pamid._models._volume import PamVolume, sleeve_pam_volume, traditional_pam_volume  # noqa: E402
-from pamid._virtual import _joint as vj  # noqa: E402
+from pamid.io import json_ready, save_figure_atomic, write_text_atomic  # noqa: E402
 
 NAME = "cullinan_joint"
 SEED = 20190520
@@ -81,7 +82,7 @@ def claim(rows, key, paper, model, holds, note=""):
 
 def presets_section(out: Path):
     t0 = time.time()
-    result, frames = pamid.fit_cullinan_presets()
+    result, frames = pamid.cullinan.fit_cullinan_presets()
     stored = [cp.TRADITIONAL_FIT, cp.SLEEVE_FIT]
     print("== Presets: eq. 3 fitted to the virtual static bench of the physical muscles ==")
     print(f"   (fit {time.time() - t0:.1f} s; n = {result.n.tolist()}, load-cell noise 2 N)")
@@ -114,12 +115,12 @@ def presets_section(out: Path):
             color = plt.cm.viridis(k / 5)
             y = np.linspace(0, g["contraction_mm"].max(), 100)
             ax.plot(g["contraction_mm"], g["force_N"], ".", color=color, ms=3)
-            ax.plot(y, np.asarray(pamid.cullinan_force(prm, p, y)), "-", color=color,
+            ax.plot(y, np.asarray(pamid.cullinan.cullinan_force(prm, p, y)), "-", color=color,
                     label=f"{p:.0f} kPa")
             ax.plot(y, np.asarray(cp.braided_pam_force_N(physical[i], p, y)), ":",
                     color="k", lw=0.8)
             res = g["force_N"].to_numpy() - np.asarray(
-                pamid.cullinan_force(prm, p, g["contraction_mm"].to_numpy()))
+                pamid.cullinan.cullinan_force(prm, p, g["contraction_mm"].to_numpy()))
             axr.plot(g["contraction_mm"], res, ".-", color=color, ms=3, lw=0.6)
         ax.set_title(f"{name}: bench (dots), eq. 3 fit (lines), physical model (dotted)",
                      fontsize=9)
@@ -151,7 +152,7 @@ def fig4_section(out: Path, rows, traditional, sleeve, beta_range_a, key):
         avail = available_torque_Nm(prm, geom, beta[None, :], pressures[:, None])
         pos, neg = np.asarray(avail.toward_positive_Nm), np.asarray(avail.toward_negative_Nm)
         curves[name] = (beta, pos, neg)
-        sweep = vj.simulate_joint_sweep(k, prm, geom)
+        sweep = pamid.simulate_joint_sweep(k, prm, geom)
         for i, p in enumerate(pressures):
             color = plt.cm.viridis(i / 5)
             ax.plot(beta, pos[i], "--", color=color, lw=1)
@@ -207,7 +208,7 @@ def fig4_section(out: Path, rows, traditional, sleeve, beta_range_a, key):
     limit_b = r_b[:, -1]  # β = +0.6, towards +β: the contracted muscle
     # At full extension (y = 0) the physical muscles differ only by eq. 1's P′·π·d²/4,
     # against the braid's P′·dV/dy(0); the bladder stores no energy there.
-    dv0 = float(jax.jvp(lambda y: pamid.pam_volume_mm3(cp.traditional_volume(), y),
+    dv0 = float(jax.jvp(lambda y: pamid.cullinan.pam_volume_mm3(cp.traditional_volume(), y),
                         (0.0,), (1.0,))[1])
     element = math.pi * cp.ELEMENT_DIAMETER_MM**2 / 4
     whole_bore = math.pi * 40.0**2 / 4
@@ -312,10 +313,10 @@ def fig6_section(out: Path, rows, traditional, sleeve, beta_range_a, key):
                            zip(angles[ok], p1[ok], p2[ok]))
                 model = closed_system_stiffness(prm, prm, geom, vol, angles[ok], p1[ok],
                                                 p2[ok], direction=direction)
-                frame = vj.simulate_deflection_test(
+                frame = pamid.simulate_deflection_test(
                     next(keys), prm, geom, vol,
-                    vj.DeflectionProtocol(set_points=sp, direction=direction))
-                st = vj.deflection_test_stiffness(frame)
+                    pamid.DeflectionProtocol(set_points=sp, direction=direction))
+                st = pamid.deflection_test_stiffness(frame)
                 g = st.groupby("set_point")["stiffness_Nm_per_rad"]
                 mean, lo, hi = g.mean().to_numpy(), g.min().to_numpy(), g.max().to_numpy()
                 x = angles[ok]
@@ -456,11 +457,11 @@ def sensitivity_section(out: Path, traditional, sleeve, beta_range_a, key):
     for h, length in ((10.0, 0.5), (20.0, 0.5), (20.0, 0.0)):
         vals = []
         for prm, geom, v in ((traditional, geom_t, vol()), (sleeve, geom_b, vol(d=e))):
-            proto = vj.DeflectionProtocol(
+            proto = pamid.DeflectionProtocol(
                 set_points=((0.0, 300.0, 300.0),), hysteresis_N=h, friction_length_mm=length,
                 pressure_noise_sd_kPa=0.0, pressure_resolution_kPa=0.0, force_noise_sd_N=0.0,
                 force_resolution_N=0.0, angle_resolution_rad=0.0)
-            st = vj.deflection_test_stiffness(vj.simulate_deflection_test(key, prm, geom, v,
+            st = pamid.deflection_test_stiffness(pamid.simulate_deflection_test(key, prm, geom, v,
                                                                           proto))
             iso = closed_ratio(prm, geom, v)[1].isobaric_Nm_per_rad
             vals.append(float(st["stiffness_Nm_per_rad"].mean() / iso))
@@ -581,11 +582,11 @@ def element_section(out: Path):
                                        cp.traditional_volume(), traj, 20.0, 60.0).total_J)
     for d in (20.0, 25.0, 28.0, 30.0, 32.0, 35.0):
         # Same keys as the presets' fit, so that d = 30 mm gives the presets exactly.
-        result, _ = pamid.fit_cullinan_presets(
+        result, _ = pamid.cullinan.fit_cullinan_presets(
             muscles={"traditional": cp.traditional_braided_pam(), "sleeve": cp.braided_pam(d)})
         sleeve = result.params(1)
         beta_a = cp.config_a_beta_range_rad(traditional, sleeve)
-        geom_a = JointGeometry(40.0, beta_a, pamid.CULLINAN_CABLE_COMPLIANCE_MM_PER_N)
+        geom_a = JointGeometry(40.0, beta_a, pamid.cullinan.CULLINAN_CABLE_COMPLIANCE_MM_PER_N)
         r_b = np.asarray(available_torque_Nm(sleeve, cp.sleeve_joint_B(), beta[None, :],
                                              pressures[:, None]).toward_positive_Nm) / t_avail
         r_a = np.asarray(available_torque_Nm(sleeve, geom_a, beta[None, :],

@@ -2,7 +2,7 @@
 
 A clean file holds nothing the baseline model (Sárosi eq. 2.1) lacks — only the sensors'
 noise and resolution — so any effect selected there is a false positive. The files are the
-protocols real labs deliver (:func:`pamid._virtual._isometric.virtual_lab_file` and
+protocols real labs deliver (:func:`pamid.virtual_lab_file` and
 :class:`pamid.SarosiProtocol`):
 
 * ``sweeps``: Sárosi's sweeps, 5 repeats averaged, a direction column;
@@ -40,9 +40,8 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import pamid  # noqa: E402
-from pamid._diagnose._api import diagnose  # noqa: E402
-from pamid._io import json_ready, write_frame_atomic, write_text_atomic  # noqa: E402
-from pamid._virtual._isometric import virtual_lab_file  # noqa: E402
+from pamid import diagnose, virtual_lab_file  # noqa: E402
+from pamid.io import json_ready, write_frame_atomic, write_text_atomic  # noqa: E402
 
 PROTOCOLS = ("sweeps", "sweeps_noisy", "isometric_stairs", "isometric_ramp")
 ISO_CLEAN = {"transient_N_per_kPa": 0.0, "pressure_offset_kPa": 0.0,
@@ -92,7 +91,7 @@ def clean_file(protocol: str, seed: int, rows: int):
     key = jax.random.key(seed)
     if protocol == "sweeps":
         proto = pamid.SarosiProtocol(points_per_curve=max(4, rows // 10))
-        return pamid.simulate_sarosi_bench(key, pamid.table_3_1(), proto)
+        return pamid.simulate_sarosi_bench(key, pamid.sarosi.table_3_1(), proto)
     drop = ("direction",) if seed % 2 else ()
     if protocol == "sweeps_noisy":
         return virtual_lab_file(key, "sweeps_noisy", rows, hysteresis_N_per_bar=0.0,

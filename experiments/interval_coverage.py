@@ -48,8 +48,8 @@ from pamid._fit import _correlated, _intervals  # noqa: E402
 from pamid._fit._batch import FitData  # noqa: E402
 from pamid._fit._least_squares import solve, statistics  # noqa: E402
 from pamid._fit._spec import get_model  # noqa: E402
-from pamid._io import write_text_atomic  # noqa: E402
-from pamid._models._sarosi import table_3_1  # noqa: E402
+from pamid.io import write_text_atomic  # noqa: E402
+from pamid.sarosi import table_3_1  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 

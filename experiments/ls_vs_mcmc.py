@@ -41,9 +41,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
-from pamid._sampling import _arviz  # noqa: E402
-from pamid._sampling._mcmc import fit_mcmc  # noqa: E402
+from pamid import fit_mcmc  # noqa: E402
+from pamid.io import save_figure_atomic, write_text_atomic  # noqa: E402
 
 NAME = "ls_vs_mcmc"
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "martens_dmsp10_250.csv"
@@ -54,7 +53,7 @@ COLORS = {"wald": "tab:blue", "profile": "tab:cyan", "eti": "tab:red", "hdi": "t
 
 
 def synthetic(noise_sd, seed):
-    theta = np.asarray(pamid.table_3_1().to_vector())
+    theta = np.asarray(pamid.sarosi.table_3_1().to_vector())
     protocol = pamid.SarosiProtocol(min_force_N=10.0, noise_sd_N=noise_sd)
     frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.Sarosi.from_vector(theta),
                                         protocol)
@@ -190,10 +189,10 @@ def main(argv=None):
         res_t, _ = compare("martens-student-t", bench, jax.random.fold_in(key, 11),
                            likelihood="student-t")
         print_table(res_t)
-        _arviz.plot_pair(martens, 0, args.out / "martens_pair.png",
-                         "Posterior of Sárosi's constants — Martens DMSP-10-250")
-        _arviz.plot_predictive(martens, 0, args.out / "martens_predictive.png",
-                               "Posterior predictive — Martens DMSP-10-250")
+        martens.plot_pair(0, args.out / "martens_pair.png",
+                          "Posterior of Sárosi's constants — Martens DMSP-10-250")
+        martens.plot_predictive(0, args.out / "martens_predictive.png",
+                                "Posterior predictive — Martens DMSP-10-250")
     else:
         res_t = None
         print(f"\n{args.data} not found: the measured data set is skipped.")

@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
+from pamid.io import save_figure_atomic, write_text_atomic  # noqa: E402
 
 NAME = "martens_dmsp10"
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "martens_dmsp10_250.csv"
@@ -75,7 +75,7 @@ def per_pressure(theta, p_bar, kappa, res):
     that the level means carry (levels with at least 2 points)."""
     prm = pamid.Sarosi.from_vector(theta)
     dfdp = np.asarray(
-        jax.vmap(jax.grad(lambda p, k: pamid.sarosi_force(prm, p, k)))(
+        jax.vmap(jax.grad(lambda p, k: pamid.sarosi.sarosi_force(prm, p, k)))(
             jax.numpy.asarray(p_bar), jax.numpy.asarray(kappa)
         )
     )  # N/bar
@@ -118,7 +118,7 @@ def plot_data_vs_model(frame, censored, theta, path):
             c = cmap(norm(p_kpa))
             g = frame[frame["pressure_kPa"] == p_kpa]
             ax.plot(g["contraction_pct"], g["force_N"], "o", color=c, ms=6)
-            f = np.asarray(pamid.sarosi_force(prm, p_kpa / 100, kk))
+            f = np.asarray(pamid.sarosi.sarosi_force(prm, p_kpa / 100, kk))
             ax.plot(kk, np.where(f > -60, f, np.nan), "-", color=c, lw=1)
         ax.plot(
             censored["contraction_pct"],
@@ -207,15 +207,16 @@ def main(argv=None):
     p_bar = p_kpa / 100.0
     kappa = frame["contraction_pct"].to_numpy()
     force = frame["force_N"].to_numpy()
-    res_fit = np.asarray(pamid.sarosi_force(pamid.Sarosi.from_vector(theta), p_bar, kappa)) - force
-    res_q = np.asarray(pamid.sarosi_force(pamid.Sarosi.from_vector(QUOTED), p_bar, kappa)) - force
+    force_of = pamid.sarosi.sarosi_force
+    res_fit = np.asarray(force_of(pamid.Sarosi.from_vector(theta), p_bar, kappa)) - force
+    res_q = np.asarray(force_of(pamid.Sarosi.from_vector(QUOTED), p_bar, kappa)) - force
     r_q = float(np.corrcoef(force, res_q + force)[0, 1])
 
     # Censored rows: a muscle that cannot hold the length should have a model force ≤ 0 there.
     pc = censored["pressure_kPa"].to_numpy() / 100
     kc = censored["contraction_pct"].to_numpy()
-    f_cens_fit = np.asarray(pamid.sarosi_force(pamid.Sarosi.from_vector(theta), pc, kc))
-    f_cens_q = np.asarray(pamid.sarosi_force(pamid.Sarosi.from_vector(QUOTED), pc, kc))
+    f_cens_fit = np.asarray(pamid.sarosi.sarosi_force(pamid.Sarosi.from_vector(theta), pc, kc))
+    f_cens_q = np.asarray(pamid.sarosi.sarosi_force(pamid.Sarosi.from_vector(QUOTED), pc, kc))
 
     print(f"Martens & Boblan DMSP-10-250 force map: {args.data}")
     print(

@@ -12,7 +12,7 @@ quantizes it. Two cases:
 
 For each case: the logarithmic decrement (Cullinan eq. 9/10, ``pamid.analyze_decays``), the
 least-squares trajectory fit with Wald intervals, and the posterior of every trial from one
-stacked MCMC run (:func:`pamid._decays._posterior.fit_decay_mcmc`). Then 200
+stacked MCMC run (:func:`pamid.fit_decay_mcmc`). Then 200
 posterior draws per trial go through ``pamid.simulate_oscillator`` in one batched call, with
 the noise σ of each draw added; the 95 % predictive band is drawn against the recorded
 decay (one PNG per trial), and the fraction of recorded samples inside the band is reported
@@ -54,8 +54,8 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._decays._posterior import fit_decay_mcmc  # noqa: E402
-from pamid._io import write_text_atomic  # noqa: E402
+from pamid import fit_decay_mcmc  # noqa: E402
+from pamid.io import write_text_atomic  # noqa: E402
 
 NAME = "posterior_predictive_decays"
 SEED = 20261121
@@ -144,9 +144,7 @@ def main(argv=None):
               "prior": None, "cases": {}}
     for j, (name, tc) in enumerate(CASES.items()):
         result["cases"][name] = run_case(name, tc, jax.random.fold_in(key, j), out)
-    from pamid._decays._posterior import decay_prior
-
-    result["prior"] = decay_prior(PROTOCOL.sample_rate_Hz, STEP).describe()
+    result["prior"] = pamid.decay_prior(PROTOCOL.sample_rate_Hz, STEP).describe()
     write_text_atomic(out / f"{NAME}.json", json.dumps(result, indent=2, ensure_ascii=False))
     for name, case in result["cases"].items():
         print(f"{name}: coverage {case['predictive']['coverage_all']:.1%} "

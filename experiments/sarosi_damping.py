@@ -50,14 +50,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
-from pamid._sim._lifting_mass import (  # noqa: E402
-    LiftingMass,
-    default_zeta,
-    lifting_mass_damping,
-    lifting_mass_equilibrium,
-    simulate_lifting_mass,
-)
+from pamid import LiftingMass, lifting_mass_equilibrium, simulate_lifting_mass  # noqa: E402
+from pamid.io import save_figure_atomic, write_text_atomic  # noqa: E402
+from pamid.sarosi import default_zeta, lifting_mass_damping  # noqa: E402
 
 NAME = "sarosi_damping"
 G = 9.81
@@ -106,7 +101,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     out = Path(args.out)
     t0 = time.perf_counter()
-    muscle = pamid.table_3_1()
+    muscle = pamid.sarosi.table_3_1()
     kappa_50 = 100.0 * X_FIG_3_3_MM / 1000.0 / L0_M
     hyps = ("A", "B", "C", "D")
     results: dict = {"hypotheses": {
@@ -131,7 +126,7 @@ def main(argv=None) -> int:
     print(f"\nFig. 3-3: displacement {X_FIG_3_3_MM:g} mm (κ = {kappa_50:g} %), each load at the "
           "pressure that holds it there (eq. 2.1 inverted):")
     for m in LOADS_KG:
-        p = float(pamid.sarosi_pressure_for_force(muscle, m * G, kappa_50)) * 100.0
+        p = float(pamid.sarosi.sarosi_pressure_for_force(muscle, m * G, kappa_50)) * 100.0
         row = {"mass_kg": m, "pressure_kPa": p}
         for h in hyps:
             row[f"c_{h}_Ns_per_m"] = float(damping_curve(h, p, m, [kappa_50])[0])

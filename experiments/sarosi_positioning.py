@@ -1,10 +1,11 @@
 #!/usr/bin/env python
 """Sárosi's positioning experiments (Sections 2.4 and 3.3) simulated with pamid.
 
-The rigs, valve, controller, encoder and thermal model are those of ``pamid._control``
-(see the docstrings there for every assumption); one set of constants serves all the runs
-below; the valve and the controller are the same for every rig, and only the rotary rig's
-pulley radius and pre-pressure are calibrated (to Fig. 3-13). Reproduced, with plots and a
+The rigs, valve, controller, encoder and thermal model are those of
+``pamid.simulate_positioning`` and ``pamid.sarosi`` (see their docstrings for every
+assumption); one set of constants serves all the runs below; the valve and the controller
+are the same for every rig, and only the rotary rig's pulley radius and pre-pressure are
+calibrated (to Fig. 3-13). Reproduced, with plots and a
 printed comparison to the text:
 
     Fig. 3-7     linear rig (two DMSP-20-200N), 0 → 15 mm, gradient 0.35
@@ -44,36 +45,32 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pamid._control._positioning import (  # noqa: E402
-    linear_rig,
+from pamid import (  # noqa: E402
+    PamVolume,
+    ProportionalValve,
+    SlidingModeController,
     positioning_metrics,
-    rotary_rig,
-    sarosi_from_fit_json,
     simulate_positioning,
-    single_muscle_rig,
     wald_draws,
 )
-from pamid._control._sliding_mode import (  # noqa: E402
+from pamid.io import save_figure_atomic, write_text_atomic  # noqa: E402
+from pamid.sarosi import (  # noqa: E402
+    CONDUCTANCE_CALIBRATION,
     LINEAR_GRADIENT,
     ROTARY_GRADIENT,
     SLOW_BAND_COUNTS,
-    SlidingModeController,
-    plain_switching,
-)
-from pamid._control._thermal import (  # noqa: E402
     TABLE_3_2,
     fit_table_3_2,
+    plain_switching,
+    sarosi_from_fit_json,
+    sonic_conductance_from_nominal_flow,
     steady_state_temperature_C,
+    table_3_1_fit_json,
     temperature_after_C,
 )
-from pamid._control._valve import (  # noqa: E402
-    CONDUCTANCE_CALIBRATION,
-    ProportionalValve,
-    sonic_conductance_from_nominal_flow,
-)
-from pamid._io import save_figure_atomic, write_text_atomic  # noqa: E402
-from pamid._models._sarosi import table_3_1_fit_json  # noqa: E402
-from pamid._models._volume import PamVolume  # noqa: E402
+from pamid.sarosi import sarosi_linear_rig as linear_rig  # noqa: E402
+from pamid.sarosi import sarosi_rotary_rig as rotary_rig  # noqa: E402
+from pamid.sarosi import sarosi_single_muscle_rig as single_muscle_rig  # noqa: E402
 
 NAME = "positioning"
 LINEAR_RES, ROTARY_RES = 0.01, 0.036

@@ -42,7 +42,7 @@ import scipy.optimize  # noqa: E402
 import scipy.stats  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._io import save_figure_atomic, write_frame_atomic, write_text_atomic  # noqa: E402
+from pamid.io import save_figure_atomic, write_frame_atomic, write_text_atomic  # noqa: E402
 
 NAME = "sarosi_table_3_1"
 NAMES = ("a1", "a2", "a3", "a4", "a5", "a6")
@@ -57,7 +57,7 @@ PAPER = pamid.SarosiProtocol()  # 100–500 kPa, 30 points, ±, 5 repeats averag
 # Published table and design algebra
 # --------------------------------------------------------------------------------------
 def published():
-    t = pamid.TABLE_3_1
+    t = pamid.sarosi.TABLE_3_1
     value = np.array([t[n]["value"] for n in NAMES], float)
     ci = np.array([t[n]["ci95"] for n in NAMES], float)
     return value, ci, (ci[:, 1] - ci[:, 0]) / 2
@@ -86,7 +86,7 @@ def design_points(protocol: pamid.SarosiProtocol, theta=THETA_PUB):
 
 
 def _force_vec(theta, p, k):
-    return pamid.sarosi_force(pamid.Sarosi.from_vector(theta), p, k)
+    return pamid.sarosi.sarosi_force(pamid.Sarosi.from_vector(theta), p, k)
 
 
 _jac = jax.jit(jax.jacfwd(_force_vec))
@@ -276,7 +276,7 @@ def monte_carlo(key, protocol, n_sets, sigma_point_true):
 def plot_fit(df, fit, path):
     fig, ax = plt.subplots(figsize=(8.5, 5.8), constrained_layout=True)
     colors = plt.cm.viridis(np.linspace(0.0, 0.85, len(PAPER.pressures_kPa)))
-    pub = pamid.table_3_1()
+    pub = pamid.sarosi.table_3_1()
     fitted = fit.params(0)
     for c, p_kpa in zip(colors, PAPER.pressures_kPa):
         g = df[df["pressure_kPa"] == p_kpa]
@@ -292,9 +292,11 @@ def plot_fit(df, fit, path):
                 label=f"{p_kpa:.0f} kPa, {'contracting' if d == 1 else 'extending'}",
             )
         kk = np.linspace(0, g["contraction_pct"].max(), 200)
-        ax.plot(kk, np.asarray(pamid.sarosi_force(pub, p_kpa / 100, kk)), "-", color=c, lw=1.5)
+        ax.plot(kk, np.asarray(pamid.sarosi.sarosi_force(pub, p_kpa / 100, kk)), "-", color=c,
+                lw=1.5)
         ax.plot(
-            kk, np.asarray(pamid.sarosi_force(fitted, p_kpa / 100, kk)), "--", color="k", lw=0.8
+            kk, np.asarray(pamid.sarosi.sarosi_force(fitted, p_kpa / 100, kk)), "--", color="k",
+            lw=0.8
         )
     ax.plot([], [], "-", color="gray", label="Table 3-1 constants (truth)")
     ax.plot([], [], "--", color="k", lw=0.8, label="pamid fit")
@@ -390,7 +392,7 @@ def main(argv=None):
 
     # ---- part 1: side by side ----------------------------------------------------------
     protocol = pamid.SarosiProtocol(noise_sd_N=sigma_read)
-    df = pamid.simulate_sarosi_bench(k_sim, pamid.table_3_1(), protocol)
+    df = pamid.simulate_sarosi_bench(k_sim, pamid.sarosi.table_3_1(), protocol)
     bench_path = out / "virtual_bench.csv"
     write_frame_atomic(bench_path, df)
     bench = pamid.load_bench(bench_path)

@@ -33,7 +33,7 @@ def make_data(n):
     sweep (100 samples per muscle), fixed keys."""
     key_theta, key_noise = jax.random.split(jax.random.key(37))
     z = np.asarray(jax.random.normal(key_theta, (n, 6)))
-    theta = np.asarray(pamid.table_3_1().to_vector()) * (1.0 + 0.03 * z)
+    theta = np.asarray(pamid.sarosi.table_3_1().to_vector()) * (1.0 + 0.03 * z)
     frame = pamid.simulate_sarosi_bench(
         key_noise,
         pamid.Sarosi.from_vector(theta),

@@ -33,7 +33,7 @@ def two_muscle_csv(tmp_path_factory):
     import jax
     import jax.numpy as jnp
 
-    theta = np.asarray(pamid.table_3_1().to_vector())
+    theta = np.asarray(pamid.sarosi.table_3_1().to_vector())
     thetas = jnp.asarray(np.stack([theta, theta * np.array([1.05, 0.97, 1.02, 1.0, 0.99, 1.01])]))
     frame = pamid.simulate_sarosi_bench(
         jax.random.key(7), pamid.Sarosi.from_vector(thetas),
@@ -78,8 +78,8 @@ def test_fit_table_and_bootstrap(two_muscle_csv, env):
 
 
 def test_censored_rows_warn_and_single_muscle_gives_null_id(tmp_path, env):
-    theta = pamid.table_3_1()
-    rows = [(p, k, float(pamid.sarosi_force(theta, p / 100, k)))
+    theta = pamid.sarosi.table_3_1()
+    rows = [(p, k, float(pamid.sarosi.sarosi_force(theta, p / 100, k)))
             for p in (200.0, 300.0, 400.0, 500.0) for k in np.linspace(0, 15, 12)]
     frame = pd.DataFrame(rows, columns=["pressure_kPa", "contraction_pct", "force_N"])
     frame.loc[len(frame)] = (100.0, 24.0, 0.0)  # a censored point of a published map
@@ -92,7 +92,7 @@ def test_censored_rows_warn_and_single_muscle_gives_null_id(tmp_path, env):
     assert payload["muscles"][0]["muscle"] is None
     assert payload["n_censored_dropped"] == 1
     np.testing.assert_allclose(payload["muscles"][0]["params"]["a3"]["value"],
-                               pamid.TABLE_3_1["a3"]["value"], rtol=1e-8)
+                               pamid.sarosi.TABLE_3_1["a3"]["value"], rtol=1e-8)
 
 
 @pytest.mark.parametrize(

@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def bench_csv(tmp_path_factory):
     """One muscle of 300 rows (the default protocol, repeats averaged)."""
-    frame = pamid.simulate_sarosi_bench(jax.random.key(3), pamid.table_3_1(),
+    frame = pamid.simulate_sarosi_bench(jax.random.key(3), pamid.sarosi.table_3_1(),
                                         pamid.SarosiProtocol(min_force_N=10.0))
     path = tmp_path_factory.mktemp("failures") / "bench.csv"
     frame.to_csv(path, index=False)
@@ -272,7 +272,7 @@ def _problem(rows: int, tmp_path):
     points = rows // 100  # 5 pressures × 2 directions × 10 repeats
     proto = pamid.SarosiProtocol(points_per_curve=points, repeats=10, average_repeats=False,
                                  seconds_per_point=200.0 / points, min_force_N=10.0)
-    frame = pamid.simulate_sarosi_bench(jax.random.key(0), pamid.table_3_1(), proto)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(0), pamid.sarosi.table_3_1(), proto)
     path = tmp_path / f"rows{rows}.csv"
     frame.to_csv(path, index=False)
     bench = load_bench(path)
@@ -342,7 +342,7 @@ def test_start_subsample_of_a_long_muscle_is_a_gather_with_the_same_samples(monk
 def _sweeps(tmp_path, points, repeats, effects=(), name="sweeps.csv"):
     proto = pamid.SarosiProtocol(points_per_curve=points, repeats=repeats,
                                  average_repeats=False, min_force_N=10.0, effects=effects)
-    frame = pamid.simulate_sarosi_bench(jax.random.key(5), pamid.table_3_1(), proto)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(5), pamid.sarosi.table_3_1(), proto)
     path = tmp_path / name
     frame.to_csv(path, index=False)
     return path

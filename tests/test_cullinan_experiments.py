@@ -101,8 +101,8 @@ def test_sleeve_contracts_about_5_percent_further():
 
 def test_volumes_of_the_presets():
     y = np.linspace(0.0, 55.0, 6)
-    trad = np.asarray(pamid.pam_volume_mm3(cp.traditional_volume(), y))
-    sleeve = np.asarray(pamid.pam_volume_mm3(cp.sleeve_volume(), y))
+    trad = np.asarray(pamid.cullinan.pam_volume_mm3(cp.traditional_volume(), y))
+    sleeve = np.asarray(pamid.cullinan.pam_volume_mm3(cp.sleeve_volume(), y))
     np.testing.assert_allclose(trad - sleeve, math.pi * 15.0**2 * (190.0 - y), rtol=1e-12)
     assert float(cp.traditional_volume().rest_braid_angle_rad) == pytest.approx(math.pi / 6)
 
@@ -111,7 +111,8 @@ def test_configuration_geometry():
     trad, a, b = cp.traditional_joint(), cp.sleeve_joint_A(), cp.sleeve_joint_B()
     for g in (trad, a, b):
         assert float(g.pulley_radius_mm) == 40.0
-        assert float(g.cable_compliance_mm_per_N) == pamid.CULLINAN_CABLE_COMPLIANCE_MM_PER_N
+        assert (float(g.cable_compliance_mm_per_N)
+                == pamid.cullinan.CULLINAN_CABLE_COMPLIANCE_MM_PER_N)
     assert float(b.beta_range_rad) == float(trad.beta_range_rad) == 1.2  # B keeps the range
     assert float(a.beta_range_rad) > 1.2  # A rotates further
     beta_a = cp.config_a_beta_range_rad()
@@ -198,11 +199,11 @@ def test_energy_of_a_zero_motion_trajectory():
     assert np.all(work[1:] == 0.0)
     assert float(e.total_J) == pytest.approx(work[0].sum(), rel=1e-12)
     # First step: X = P·V·ln(P/P_atm) − (P − P_atm)·V per muscle (absolute P, SI units).
-    y1, y2 = pamid.contractions_mm(cp.sleeve_joint_B(), 0.1)
+    y1, y2 = pamid.cullinan.contractions_mm(cp.sleeve_joint_B(), 0.1)
     expected = 0.0
     for p_kpa, y in ((e.p1_kPa[0], y1), (e.p2_kPa[0], y2)):
         p = (float(p_kpa) + ATMOSPHERE_KPA) * 1e3
-        v = float(pamid.pam_volume_mm3(cp.sleeve_volume(), y)) * 1e-9
+        v = float(pamid.cullinan.pam_volume_mm3(cp.sleeve_volume(), y)) * 1e-9
         expected += p * v * math.log(p / (ATMOSPHERE_KPA * 1e3)) - (p - ATMOSPHERE_KPA * 1e3) * v
     assert work[0].sum() == pytest.approx(expected, rel=1e-9)
     # No torque, no motion, no pressure: nothing at all.

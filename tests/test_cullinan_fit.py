@@ -26,7 +26,7 @@ def _design(rng, velocity=False):
 
 
 def _force(theta, p, y, v):
-    return np.asarray(pamid.cullinan_force(pamid.Cullinan.from_vector(theta), p, y, v))
+    return np.asarray(pamid.cullinan.cullinan_force(pamid.Cullinan.from_vector(theta), p, y, v))
 
 
 def test_gauss_newton_path_equals_the_exact_linear_solution():

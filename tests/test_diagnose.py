@@ -34,7 +34,7 @@ SPEEDS = (1.0, 3.0, 2.0, 1.5)  # seconds per point of successive sweeps
 
 def _bench(tmp_path, effects, seed=1, drop=(), name="bench.csv", **protocol):
     proto = pamid.SarosiProtocol(min_force_N=10.0, effects=effects, **protocol)
-    frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.table_3_1(), proto)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(seed), pamid.sarosi.table_3_1(), proto)
     path = tmp_path / name
     frame.drop(columns=list(drop)).to_csv(path, index=False)
     return path
@@ -88,7 +88,7 @@ def test_hysteresis_found_in_sweeps_with_noisy_pressure_and_no_direction(tmp_pat
     """Every real bench logs a noisy pressure: ±1 kPa must not make each sample its own
     curve (which hid the loop: the derived direction was +1 everywhere)."""
     proto = pamid.SarosiProtocol(min_force_N=10.0, effects=(InjectedHysteresis(N_at_3_bar=9.0),))
-    frame = pamid.simulate_sarosi_bench(jax.random.key(5), pamid.table_3_1(), proto)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(5), pamid.sarosi.table_3_1(), proto)
     rng = np.random.default_rng(0)
     frame = frame.drop(columns=["direction"])
     frame["pressure_kPa"] += rng.normal(0.0, 1.0, len(frame))

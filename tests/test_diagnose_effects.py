@@ -123,7 +123,7 @@ def test_a_rig_that_shortens_under_load_never_reports_a_negative_compliance(tmp_
     """The encoder reads a contraction that grows with the force (κ_read = κ + a·F): the
     force law would need F = F_model(p, κ_read − a·F), a compliance c = −a < 0."""
     proto = pamid.SarosiProtocol(min_force_N=10.0)
-    frame = pamid.simulate_sarosi_bench(jax.random.key(2), pamid.table_3_1(), proto)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(2), pamid.sarosi.table_3_1(), proto)
     a_mm_per_N = 0.004
     frame["contraction_pct"] = frame["contraction_pct"] + 100.0 * a_mm_per_N * frame[
         "force_N"] / frame["l0_mm"]

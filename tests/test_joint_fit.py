@@ -17,9 +17,9 @@ ENCODER_STEP = 2.0 * np.pi / 4096  # one step of a 12-bit encoder
 
 
 def make_arm(g=G_TRUE):
-    muscle = eqx.tree_at(lambda m: m.G, pamid.traditional_pam(), jnp.asarray(g, float))
-    geometry = pamid.traditional_joint()
-    p1, p2 = pamid.pressures_for_torque_stiffness_kPa(muscle, geometry, 0.0, M, 60.0)
+    muscle = eqx.tree_at(lambda m: m.G, pamid.cullinan.traditional_pam(), jnp.asarray(g, float))
+    geometry = pamid.cullinan.traditional_joint()
+    p1, p2 = pamid.cullinan.pressures_for_torque_stiffness_kPa(muscle, geometry, 0.0, M, 60.0)
     return JointArm(muscle, muscle, geometry, traditional_volume(), J, M, 0.0, p1, p2)
 
 

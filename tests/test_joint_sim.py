@@ -22,11 +22,11 @@ M = 11.0  # N·m, Cullinan Fig. 6: "11 Nm static torque at 0 rad"
 
 
 def make_arm(p_sum_stiffness=60.0, polytropic_n=1.0, gravity=M, g_damper=None):
-    muscle = pamid.traditional_pam()
+    muscle = pamid.cullinan.traditional_pam()
     if g_damper is not None:
         muscle = eqx.tree_at(lambda m: m.G, muscle, jnp.asarray(g_damper, float))
-    geometry = pamid.traditional_joint()
-    p1, p2 = pamid.pressures_for_torque_stiffness_kPa(muscle, geometry, 0.0, gravity,
+    geometry = pamid.cullinan.traditional_joint()
+    p1, p2 = pamid.cullinan.pressures_for_torque_stiffness_kPa(muscle, geometry, 0.0, gravity,
                                                       p_sum_stiffness)
     return JointArm(muscle, muscle, geometry, traditional_volume(), J, gravity, 0.0, p1, p2,
                     polytropic_n=polytropic_n)
@@ -68,7 +68,7 @@ def test_settles_at_the_static_solution_batched():
     for i in range(2):
         arm = jax.tree_util.tree_map(lambda x, i=i: x[i, 0], arms)
         beta = float(eq[i, 0])
-        sealed = pamid.closed_system_torque_Nm(arm.muscle1, arm.muscle2, arm.geometry,
+        sealed = pamid.cullinan.closed_system_torque_Nm(arm.muscle1, arm.muscle2, arm.geometry,
                                                arm.volume, 0.0, arm.p1_kPa, arm.p2_kPa, beta)
         assert float(sealed) == pytest.approx(M * np.cos(beta), abs=1e-9)
     # Sealed pressures: at the seal angle they are the set pressures; later they follow V.

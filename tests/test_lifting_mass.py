@@ -95,7 +95,7 @@ def test_oscillator_bad_options_by_message():
 
 
 def fig_3_6() -> LiftingMass:
-    return LiftingMass(pamid.table_3_1(), 400.0, 50.0, default_zeta(), 0.4, G)
+    return LiftingMass(pamid.sarosi.table_3_1(), 400.0, 50.0, default_zeta(), 0.4, G)
 
 
 def test_equilibrium_is_the_static_solution_of_eq_2_1():
@@ -107,7 +107,7 @@ def test_equilibrium_is_the_static_solution_of_eq_2_1():
     np.testing.assert_allclose(lifting_mass_force(model, s), weight, rtol=1e-12)
     # By the closed form of eq. 2.1 at κ = 100·s/l0 (independent of pamid's clipping).
     p = np.array([3.0, 4.0, 5.0])[:, None]
-    a1, a2, a3, a4, a5, a6 = np.asarray(pamid.table_3_1().to_vector())
+    a1, a2, a3, a4, a5, a6 = np.asarray(pamid.sarosi.table_3_1().to_vector())
     k = 100.0 * np.asarray(s) / 0.4
     f = (a1 * p + a2) * np.exp(a3 * k) + a4 * k * p + a5 * p + a6
     np.testing.assert_allclose(f, np.asarray(weight), rtol=1e-12)
@@ -135,20 +135,20 @@ def test_fig_3_6_reproduction():
 def test_damping_is_eq_2_10_with_the_stiffness_of_eq_2_9():
     model = fig_3_6()
     s = jnp.linspace(0.03, 0.07, 5)
-    k = pamid.sarosi_stiffness_eq_2_9(pamid.table_3_1(), 4.0, 100.0 * s / 0.4, 0.4)
+    k = pamid.sarosi.sarosi_stiffness_eq_2_9(pamid.sarosi.table_3_1(), 4.0, 100.0 * s / 0.4, 0.4)
     np.testing.assert_allclose(lifting_mass_stiffness(model, s), k, rtol=1e-12)
     np.testing.assert_allclose(lifting_mass_damping(model, s),
                                model.zeta * 2.0 * jnp.sqrt(k * 50.0), rtol=1e-12)
 
 
 def test_zeta_from_hysteresis_is_eq_2_5():
-    muscle = pamid.table_3_1()
+    muscle = pamid.sarosi.table_3_1()
     upper, lower = hysteresis_branches(muscle, per_bar_N=3.0, constant_N=5.0)
     z = zeta_from_hysteresis(upper, lower, 400.0, 0.0, 20.0)
     ref = hysteresis_damping(upper, lower, 4.0, 0.0, 20.0, 12.0, 0.4, 50.0)["zeta"]
     assert float(z) == pytest.approx(float(ref), rel=1e-12)
     # Loop area by hand: F_f − F_a = 2·(3·p + 5) N over 20 % of contraction.
-    u0 = float(pamid.sarosi_force_integral(upper, 4.0, 0.0, 20.0))
+    u0 = float(pamid.sarosi.sarosi_force_integral(upper, 4.0, 0.0, 20.0))
     assert float(z) == pytest.approx(2 * (3 * 4 + 5) * 20.0 / u0, rel=1e-12)
     no_loop = hysteresis_branches(muscle)
     assert float(zeta_from_hysteresis(*no_loop, 400.0, 0.0, 20.0)) == 0.0

@@ -249,7 +249,7 @@ def _cullinan_data(seed=4, noise=2.0):
     p = np.repeat([100.0, 200.0, 300.0, 414.0], 20)
     y = np.tile(np.linspace(0.0, 45.0, 20), 4)
     truth = np.array([-50.0, 3.0, 5.0, 0.02, 0.05])
-    f = np.asarray(pamid.cullinan_force(pamid.Cullinan.from_vector(truth), p, y))
+    f = np.asarray(pamid.cullinan.cullinan_force(pamid.Cullinan.from_vector(truth), p, y))
     return pamid.pack_muscles([((p, y), f + rng.normal(0.0, noise, p.size))]), p, y
 
 

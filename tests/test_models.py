@@ -34,15 +34,15 @@ def force_by_hand(p, k):
 
 def test_float64_is_on():
     assert jax.config.jax_enable_x64
-    assert pamid.sarosi_force(pamid.table_3_1(), 3.0, 10.0).dtype == jnp.float64
+    assert pamid.sarosi.sarosi_force(pamid.sarosi.table_3_1(), 3.0, 10.0).dtype == jnp.float64
 
 
 def test_table_3_1_matches_the_summary(theta31, ci31):
-    np.testing.assert_array_equal(pamid.table_3_1().to_vector(), theta31)
+    np.testing.assert_array_equal(pamid.sarosi.table_3_1().to_vector(), theta31)
     for j, name in enumerate(pamid.Sarosi.names):
-        assert pamid.TABLE_3_1[name]["value"] == theta31[j]
-        assert tuple(pamid.TABLE_3_1[name]["ci95"]) == tuple(ci31[j])
-    assert pamid.TABLE_3_1_L0_MM == 400.0
+        assert pamid.sarosi.TABLE_3_1[name]["value"] == theta31[j]
+        assert tuple(pamid.sarosi.TABLE_3_1[name]["ci95"]) == tuple(ci31[j])
+    assert pamid.sarosi.TABLE_3_1_L0_MM == 400.0
 
 
 def test_sarosi_vector_round_trip(theta31):
@@ -68,14 +68,14 @@ def test_force_eq_2_1_by_hand(sarosi31, p_bar, kappa_pct, expected_N):
     by_hand = force_by_hand(p_bar, kappa_pct)
     if expected_N is not None:
         assert by_hand == pytest.approx(expected_N, rel=1e-13)
-    got = float(pamid.sarosi_force(sarosi31, p_bar, kappa_pct))
+    got = float(pamid.sarosi.sarosi_force(sarosi31, p_bar, kappa_pct))
     assert got == pytest.approx(by_hand, rel=1e-13, abs=1e-11)
 
 
 def test_force_broadcasts_over_pressure_and_contraction(sarosi31):
     p = np.array([1.0, 3.0, 5.0])[:, None]
     k = np.linspace(0.0, 25.0, 7)[None, :]
-    got = np.asarray(pamid.sarosi_force(sarosi31, p, k))
+    got = np.asarray(pamid.sarosi.sarosi_force(sarosi31, p, k))
     assert got.shape == (3, 7)
     expected = [[force_by_hand(pi, ki) for ki in k[0]] for pi in p[:, 0]]
     np.testing.assert_allclose(got, expected, rtol=1e-13)
@@ -84,8 +84,9 @@ def test_force_broadcasts_over_pressure_and_contraction(sarosi31):
 def test_force_slope_is_eq_2_8(sarosi31):
     for p, k in [(0.0, 0.0), (2.0, 7.0), (5.0, 20.0)]:
         eq_2_8 = (A1 * p + A2) * A3 * math.exp(A3 * k) + A4 * p
-        assert float(pamid.sarosi_force_slope(sarosi31, p, k)) == pytest.approx(eq_2_8, rel=1e-13)
-        autodiff = jax.grad(pamid.sarosi_force, argnums=2)(sarosi31, p, k)
+        slope = float(pamid.sarosi.sarosi_force_slope(sarosi31, p, k))
+        assert slope == pytest.approx(eq_2_8, rel=1e-13)
+        autodiff = jax.grad(pamid.sarosi.sarosi_force, argnums=2)(sarosi31, p, k)
         assert float(autodiff) == pytest.approx(eq_2_8, rel=1e-13)
 
 
@@ -97,8 +98,8 @@ P_GRID, K_GRID = np.meshgrid(np.linspace(0.0, 6.0, 13), np.linspace(0.0, 30.0, 3
 
 
 def test_stiffness_autodiff_equals_eq_2_9_on_a_grid(sarosi31):
-    auto = np.asarray(pamid.sarosi_stiffness(sarosi31, P_GRID, K_GRID, L0_M))
-    closed = np.asarray(pamid.sarosi_stiffness_eq_2_9(sarosi31, P_GRID, K_GRID, L0_M))
+    auto = np.asarray(pamid.sarosi.sarosi_stiffness(sarosi31, P_GRID, K_GRID, L0_M))
+    closed = np.asarray(pamid.sarosi.sarosi_stiffness_eq_2_9(sarosi31, P_GRID, K_GRID, L0_M))
     assert auto.shape == closed.shape == P_GRID.shape
     np.testing.assert_allclose(auto, closed, rtol=1e-12)
 
@@ -109,7 +110,7 @@ def test_stiffness_by_hand(sarosi31):
     # their sum × (−100/0.4) = 32905.4387… N/m.
     by_hand = -(100.0 / 0.4) * ((5 * A1 + A2) * A3 + A4 * 5)
     assert by_hand == pytest.approx(32905.4387, abs=1e-3)
-    for fn in (pamid.sarosi_stiffness, pamid.sarosi_stiffness_eq_2_9):
+    for fn in (pamid.sarosi.sarosi_stiffness, pamid.sarosi.sarosi_stiffness_eq_2_9):
         assert float(fn(sarosi31, 5.0, 0.0, 0.4)) == pytest.approx(by_hand, rel=1e-13)
 
 
@@ -123,17 +124,17 @@ def test_stiffness_is_central_difference_of_force_in_length(sarosi31, l0_m):
     h = 1e-6  # m
     length = l0_m * (1.0 - K_GRID / 100.0)
     fd = (force_at_length(P_GRID, length + h) - force_at_length(P_GRID, length - h)) / (2 * h)
-    auto = np.asarray(pamid.sarosi_stiffness(sarosi31, P_GRID, K_GRID, l0_m))
+    auto = np.asarray(pamid.sarosi.sarosi_stiffness(sarosi31, P_GRID, K_GRID, l0_m))
     np.testing.assert_allclose(auto, fd, rtol=1e-7)
 
 
 def test_stiffness_is_positive_for_table_3_1(sarosi31):
     # A real muscle pulls harder when stretched: dF/dl > 0 everywhere on the working range.
-    for fn in (pamid.sarosi_stiffness, pamid.sarosi_stiffness_eq_2_9):
+    for fn in (pamid.sarosi.sarosi_stiffness, pamid.sarosi.sarosi_stiffness_eq_2_9):
         k = np.asarray(fn(sarosi31, P_GRID, K_GRID, L0_M))
         assert np.all(k > 0)
     # And the stiffness grows with pressure (Sárosi, Figure 3-2).
-    k = np.asarray(pamid.sarosi_stiffness(sarosi31, P_GRID, K_GRID, L0_M))
+    k = np.asarray(pamid.sarosi.sarosi_stiffness(sarosi31, P_GRID, K_GRID, L0_M))
     assert np.all(np.diff(k, axis=0) > 0)
 
 
@@ -145,11 +146,12 @@ def test_stiffness_is_positive_for_table_3_1(sarosi31):
 def test_pressure_for_force_round_trip(sarosi31):
     p = np.linspace(0.5, 6.0, 12)[:, None]
     k = np.linspace(0.0, 25.0, 11)[None, :]
-    force = pamid.sarosi_force(sarosi31, p, k)
-    back = np.asarray(pamid.sarosi_pressure_for_force(sarosi31, force, k))
+    force = pamid.sarosi.sarosi_force(sarosi31, p, k)
+    back = np.asarray(pamid.sarosi.sarosi_pressure_for_force(sarosi31, force, k))
     np.testing.assert_allclose(back, np.broadcast_to(p, back.shape), rtol=1e-12)
     # p = 0 comes back to within rounding of the force.
-    zero = pamid.sarosi_pressure_for_force(sarosi31, pamid.sarosi_force(sarosi31, 0.0, 4.0), 4.0)
+    f0 = pamid.sarosi.sarosi_force(sarosi31, 0.0, 4.0)
+    zero = pamid.sarosi.sarosi_pressure_for_force(sarosi31, f0, 4.0)
     assert abs(float(zero)) < 1e-12
 
 
@@ -157,7 +159,7 @@ def test_pressure_for_force_by_hand(sarosi31):
     force, k = 400.0, 8.0
     e = math.exp(A3 * k)
     by_hand = (force - A2 * e - A6) / (A1 * e + A4 * k + A5)
-    got = float(pamid.sarosi_pressure_for_force(sarosi31, force, k))
+    got = float(pamid.sarosi.sarosi_pressure_for_force(sarosi31, force, k))
     assert got == pytest.approx(by_hand, rel=1e-13)
     assert force_by_hand(got, k) == pytest.approx(force, rel=1e-13)
 
@@ -165,17 +167,18 @@ def test_pressure_for_force_by_hand(sarosi31):
 def test_pressure_for_force_vmap_and_grad(sarosi31):
     forces = jnp.array([50.0, 200.0, 600.0, 1200.0])
     kappas = jnp.array([15.0, 10.0, 5.0, 0.0])
-    vmapped = jax.vmap(pamid.sarosi_pressure_for_force, in_axes=(None, 0, 0))(
+    vmapped = jax.vmap(pamid.sarosi.sarosi_pressure_for_force, in_axes=(None, 0, 0))(
         sarosi31, forces, kappas
     )
     np.testing.assert_allclose(
-        vmapped, pamid.sarosi_pressure_for_force(sarosi31, forces, kappas), rtol=1e-14
+        vmapped, pamid.sarosi.sarosi_pressure_for_force(sarosi31, forces, kappas), rtol=1e-14
     )
     for f, k in zip(forces, kappas, strict=True):
-        p = pamid.sarosi_pressure_for_force(sarosi31, f, k)
-        dF_dp = jax.grad(pamid.sarosi_force, argnums=1)(sarosi31, p, k)
-        dF_dk = jax.grad(pamid.sarosi_force, argnums=2)(sarosi31, p, k)
-        dp_dF, dp_dk = jax.grad(pamid.sarosi_pressure_for_force, argnums=(1, 2))(sarosi31, f, k)
+        p = pamid.sarosi.sarosi_pressure_for_force(sarosi31, f, k)
+        dF_dp = jax.grad(pamid.sarosi.sarosi_force, argnums=1)(sarosi31, p, k)
+        dF_dk = jax.grad(pamid.sarosi.sarosi_force, argnums=2)(sarosi31, p, k)
+        dp_dF, dp_dk = jax.grad(pamid.sarosi.sarosi_pressure_for_force,
+                                argnums=(1, 2))(sarosi31, f, k)
         # Inverse function theorem, and the implicit function theorem at constant force.
         assert float(dp_dF) == pytest.approx(1.0 / float(dF_dp), rel=1e-12)
         assert float(dp_dk) == pytest.approx(-float(dF_dk) / float(dF_dp), rel=1e-10)
@@ -211,11 +214,11 @@ def eq_2_3_as_printed(theta, p, kmin, kmax):
 )
 def test_force_integral_eq_2_3_against_quadrature(sarosi31, theta31, p, kmin, kmax):
     reference = quad_force(theta31, p, kmin, kmax)
-    got = float(pamid.sarosi_force_integral(sarosi31, p, kmin, kmax))
+    got = float(pamid.sarosi.sarosi_force_integral(sarosi31, p, kmin, kmax))
     assert got == pytest.approx(reference, rel=1e-11)
     # The reversed interval is the negative; an empty one is zero.
-    assert float(pamid.sarosi_force_integral(sarosi31, p, kmax, kmin)) == pytest.approx(-got)
-    assert float(pamid.sarosi_force_integral(sarosi31, p, kmin, kmin)) == 0.0
+    assert float(pamid.sarosi.sarosi_force_integral(sarosi31, p, kmax, kmin)) == pytest.approx(-got)
+    assert float(pamid.sarosi.sarosi_force_integral(sarosi31, p, kmin, kmin)) == 0.0
     if p != 0.0:
         # The printed eq. 2.3 (κ_max² in the lower bracket) gives a different, wrong answer.
         typo = eq_2_3_as_printed(theta31, p, kmin, kmax)
@@ -231,7 +234,7 @@ def test_hysteresis_damping_against_quadrature(theta31, p, kmin, kmax, kc, l0, m
     lower_theta = theta31
     upper_theta = theta31 + np.array([0, 0, 0, 0, 0, offset])
     upper, lower = pamid.Sarosi(*upper_theta), pamid.Sarosi(*lower_theta)
-    got = pamid.hysteresis_damping(upper, lower, p, kmin, kmax, kc, l0, mass)
+    got = pamid.sarosi.hysteresis_damping(upper, lower, p, kmin, kmax, kc, l0, mass)
 
     u0 = l0 / 100.0 * quad_force(upper_theta, p, kmin, kmax)  # J: l0[m]/100 · ∫F dκ[%]
     u_lower = l0 / 100.0 * quad_force(lower_theta, p, kmin, kmax)
@@ -265,7 +268,7 @@ def _shifted(prm: pamid.Sarosi, da6: float) -> pamid.Sarosi:
 
 
 def _damping_c(prm, p, kmin, kmax, kc):
-    out = pamid.hysteresis_damping(_shifted(prm, 24.0), prm, p, kmin, kmax, kc, 0.4, 20.0)
+    out = pamid.sarosi.hysteresis_damping(_shifted(prm, 24.0), prm, p, kmin, kmax, kc, 0.4, 20.0)
     return out["c_Ns_per_m"]
 
 
@@ -276,12 +279,12 @@ _L0 = [0.4, 0.4, 0.25, 0.3]  # m
 _F = [100.0, 300.0, 500.0, 50.0]  # N
 _KMIN, _KMAX, _KC = [0.0, 2.0, 0.0, 5.0], [20.0, 15.0, 10.0, 18.0], [5.0, 3.0, 8.0, 10.0]
 CASES = {
-    "sarosi_force": (pamid.sarosi_force, (_P, _K)),
-    "sarosi_force_slope": (pamid.sarosi_force_slope, (_P, _K)),
-    "sarosi_stiffness": (pamid.sarosi_stiffness, (_P, _K, _L0)),
-    "sarosi_stiffness_eq_2_9": (pamid.sarosi_stiffness_eq_2_9, (_P, _K, _L0)),
-    "sarosi_pressure_for_force": (pamid.sarosi_pressure_for_force, (_F, _K)),
-    "sarosi_force_integral": (pamid.sarosi_force_integral, (_P, _KMIN, _KMAX)),
+    "sarosi_force": (pamid.sarosi.sarosi_force, (_P, _K)),
+    "sarosi_force_slope": (pamid.sarosi.sarosi_force_slope, (_P, _K)),
+    "sarosi_stiffness": (pamid.sarosi.sarosi_stiffness, (_P, _K, _L0)),
+    "sarosi_stiffness_eq_2_9": (pamid.sarosi.sarosi_stiffness_eq_2_9, (_P, _K, _L0)),
+    "sarosi_pressure_for_force": (pamid.sarosi.sarosi_pressure_for_force, (_F, _K)),
+    "sarosi_force_integral": (pamid.sarosi.sarosi_force_integral, (_P, _KMIN, _KMAX)),
     "hysteresis_damping": (_damping_c, (_P, _KMIN, _KMAX, _KC)),
 }
 
@@ -365,7 +368,7 @@ def test_grad_wrt_constants_matches_finite_differences(name, theta31):
 def test_grad_of_force_wrt_constants_is_the_design_row(theta31):
     """∂F/∂(a1…a6) = (p·e, e, (a1·p + a2)·κ·e, κ·p, p, 1), e = exp(a3·κ)."""
     p, k = 3.0, 12.0
-    grad = jax.grad(pamid.sarosi_force)(pamid.Sarosi(*theta31), p, k)
+    grad = jax.grad(pamid.sarosi.sarosi_force)(pamid.Sarosi(*theta31), p, k)
     e = math.exp(A3 * k)
     expected = [p * e, e, (A1 * p + A2) * k * e, k * p, p, 1.0]
     np.testing.assert_allclose(grad.to_vector(), expected, rtol=1e-13)
@@ -374,20 +377,21 @@ def test_grad_of_force_wrt_constants_is_the_design_row(theta31):
 def test_hysteresis_damping_whole_output_under_jit_and_grad(theta31):
     upper, lower = pamid.Sarosi(*(theta31 + [0, 0, 0, 0, 0, 24.0])), pamid.Sarosi(*theta31)
     args = (4.0, 0.0, 20.0, 5.0, 0.4, 20.0)
-    eager = pamid.hysteresis_damping(upper, lower, *args)
-    jitted = jax.jit(pamid.hysteresis_damping)(upper, lower, *args)
+    eager = pamid.sarosi.hysteresis_damping(upper, lower, *args)
+    jitted = jax.jit(pamid.sarosi.hysteresis_damping)(upper, lower, *args)
     for name in eager:
         np.testing.assert_allclose(jitted[name], eager[name], rtol=1e-14)
     # ζ does not depend on the mass; c grows with √m.
-    g_mass = jax.grad(lambda m: pamid.hysteresis_damping(upper, lower, *args[:5], m)["zeta"])(20.0)
+    damping = pamid.sarosi.hysteresis_damping
+    g_mass = jax.grad(lambda m: damping(upper, lower, *args[:5], m)["zeta"])(20.0)
     assert float(g_mass) == 0.0
-    dc_dm = jax.grad(lambda m: pamid.hysteresis_damping(upper, lower, *args[:5], m)["c_Ns_per_m"])
+    dc_dm = jax.grad(lambda m: damping(upper, lower, *args[:5], m)["c_Ns_per_m"])
     assert float(dc_dm(20.0)) == pytest.approx(float(eager["c_Ns_per_m"]) / (2 * 20.0), rel=1e-12)
     # The gradient of ζ reaches both branches: the lower one through ΔU only.
     g_upper, g_lower = jax.grad(
-        lambda u, lo: pamid.hysteresis_damping(u, lo, *args)["zeta"], argnums=(0, 1)
+        lambda u, lo: pamid.sarosi.hysteresis_damping(u, lo, *args)["zeta"], argnums=(0, 1)
     )(upper, lower)
     assert np.all(np.isfinite(g_upper.to_vector())) and np.all(np.isfinite(g_lower.to_vector()))
     # ζ = 1 − ∫F_a/∫F_f, so ∂ζ/∂a6(lower) = −(κmax − κmin)/∫F_f.
-    integral_upper = float(pamid.sarosi_force_integral(upper, 4.0, 0.0, 20.0))
+    integral_upper = float(pamid.sarosi.sarosi_force_integral(upper, 4.0, 0.0, 20.0))
     assert float(g_lower.a6) == pytest.approx(-20.0 / integral_upper, rel=1e-12)

@@ -152,7 +152,7 @@ def test_noisy_sweeps_draw_bounded_legend_and_points(sweeps_100k, theta31, tmp_p
     assert len(lines) == 5
     for line, p_kpa in zip(lines, (100.0, 200.0, 300.0, 400.0, 500.0), strict=True):
         kappa, force = line.get_xdata(), line.get_ydata()
-        expected = pamid.sarosi_force(pamid.Sarosi(*theta31), p_kpa / 100.0, kappa)
+        expected = pamid.sarosi.sarosi_force(pamid.Sarosi(*theta31), p_kpa / 100.0, kappa)
         # held at the median of the noisy pressure (1 kPa noise, thousands of samples):
         # within 0.2 kPa of the set point, and eq. 2.1 changes by < 3.1 N per kPa here
         np.testing.assert_allclose(force, expected, atol=0.2 * 3.1)
@@ -197,7 +197,7 @@ def test_isometric_file_gets_force_against_pressure(isometric_100k, theta31, tmp
     model = pamid.Sarosi(*theta31)
     for line in lines:
         p_kpa, force = line.get_xdata(), line.get_ydata()
-        errors = [np.max(np.abs(force - pamid.sarosi_force(model, p_kpa / 100.0, k)))
+        errors = [np.max(np.abs(force - pamid.sarosi.sarosi_force(model, p_kpa / 100.0, k)))
                   for k in levels]
         assert min(errors) < 1e-6
 
@@ -221,7 +221,7 @@ def test_many_levels_get_a_colour_bar_not_a_legend(theta31, tmp_path):
     k = np.tile(kappa, 40)
     frame = pd.DataFrame({
         "muscle": "M", "pressure_kPa": p, "contraction_pct": k,
-        "force_N": np.asarray(pamid.sarosi_force(pamid.Sarosi(*theta31), p / 100.0, k)),
+        "force_N": np.asarray(pamid.sarosi.sarosi_force(pamid.Sarosi(*theta31), p / 100.0, k)),
     })
     fig = plot_fit(frame, SAROSI, theta31, tmp_path / "fit.png", "M")
     _check_bounded(fig)

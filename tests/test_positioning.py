@@ -299,7 +299,7 @@ def test_sarosi_at_temperature(sarosi31):
     warm = sarosi_at_temperature(sarosi31, 30.0, -0.01, 20.0)  # elastic part × 0.9
     p, k = 3.0, 10.0
     f0 = sarosi31.a2 * jnp.exp(sarosi31.a3 * k) + sarosi31.a6
-    got = pamid.sarosi_force(warm, p, k) - pamid.sarosi_force(sarosi31, p, k)
+    got = pamid.sarosi.sarosi_force(warm, p, k) - pamid.sarosi.sarosi_force(sarosi31, p, k)
     assert float(got) == pytest.approx(float(-0.1 * f0))
 
 

@@ -134,7 +134,7 @@ def test_distributed_fit_two_processes(tmp_path):
     """Two jax.distributed processes on localhost, each fitting its share of a Parquet bench
     file, give the single-process fit of the whole file, in the file's muscle order."""
     key_theta, key_noise = jax.random.split(jax.random.key(9))
-    theta = np.asarray(pamid.table_3_1().to_vector()) * (
+    theta = np.asarray(pamid.sarosi.table_3_1().to_vector()) * (
         1.0 + 0.03 * np.asarray(jax.random.normal(key_theta, (9, 6)))
     )
     frame = pamid.simulate_sarosi_bench(

@@ -31,7 +31,7 @@ NOISE_FREE = dict(
 def static_force(params, frame, offset_kPa=0.0):
     """Sárosi eq. 2.1 at the file's pressure (less the logger's offset) and contraction."""
     return np.asarray(
-        pamid.sarosi_force(
+        pamid.sarosi.sarosi_force(
             params,
             (frame["pressure_kPa"].to_numpy() - offset_kPa) / 100.0,
             frame["contraction_pct"].to_numpy(),
@@ -63,7 +63,7 @@ def test_columns_shape_and_trial_labels(sarosi31):
 
 def test_time_restarts_at_zero_in_every_trial():
     proto = pamid.IsometricProtocol(sample_s=0.02, time_jitter_s=0.005, repeats=2)
-    frame = pamid.simulate_isometric_bench(jax.random.key(1), pamid.table_3_1(), proto)
+    frame = pamid.simulate_isometric_bench(jax.random.key(1), pamid.sarosi.table_3_1(), proto)
     for _, trial in frame.groupby("trial", sort=False):
         t = trial["time_s"].to_numpy()
         assert t[0] == 0.0
@@ -101,7 +101,7 @@ def test_quantized_channels_sit_on_their_reading_steps():
     proto = pamid.IsometricProtocol(
         pressure_resolution_kPa=0.766, force_resolution_N=0.683, sample_s=0.05
     )
-    frame = pamid.simulate_isometric_bench(jax.random.key(3), pamid.table_3_1(), proto)
+    frame = pamid.simulate_isometric_bench(jax.random.key(3), pamid.sarosi.table_3_1(), proto)
     for column, step in (("pressure_kPa", 0.766), ("force_N", 0.683)):
         k = frame[column].to_numpy() / step
         np.testing.assert_allclose(k, np.round(k), atol=1e-5)
@@ -149,7 +149,7 @@ def test_ramp_transient_is_the_first_order_lag(sarosi31):
 @pytest.mark.parametrize("program", ["stairs", "ramp"])
 def test_direction_marks_inflating_and_deflating(program):
     proto = pamid.IsometricProtocol(program=program, sample_s=0.01, repeats=1, **NOISE_FREE)
-    frame = pamid.simulate_isometric_bench(jax.random.key(6), pamid.table_3_1(), proto)
+    frame = pamid.simulate_isometric_bench(jax.random.key(6), pamid.sarosi.table_3_1(), proto)
     for _, trial in frame.groupby("trial", sort=False):
         p = trial["pressure_kPa"].to_numpy()
         d = trial["direction"].to_numpy()
@@ -230,7 +230,7 @@ def test_injected_effects_see_elapsed_time_and_compliance(sarosi31):
     frame = pamid.simulate_isometric_bench(jax.random.key(11), sarosi31, proto)
     f = frame["force_N"].to_numpy()
     kappa_true = frame["contraction_pct"].to_numpy() + 100 * c * f / 400.0
-    model = pamid.sarosi_force(sarosi31, frame["pressure_kPa"].to_numpy() / 100, kappa_true)
+    model = pamid.sarosi.sarosi_force(sarosi31, frame["pressure_kPa"].to_numpy() / 100, kappa_true)
     np.testing.assert_allclose(f, np.asarray(model), atol=1e-5)
     assert np.abs(f - static_force(sarosi31, frame)).max() > 10.0  # and it matters
 
@@ -242,9 +242,9 @@ def test_injected_effects_see_elapsed_time_and_compliance(sarosi31):
 
 def test_keys_make_results_reproducible_and_different_keys_differ():
     proto = pamid.IsometricProtocol(sample_s=0.05, time_jitter_s=0.01)
-    a = pamid.simulate_isometric_bench(jax.random.key(12), pamid.table_3_1(), proto)
-    b = pamid.simulate_isometric_bench(jax.random.key(12), pamid.table_3_1(), proto)
-    c = pamid.simulate_isometric_bench(jax.random.key(13), pamid.table_3_1(), proto)
+    a = pamid.simulate_isometric_bench(jax.random.key(12), pamid.sarosi.table_3_1(), proto)
+    b = pamid.simulate_isometric_bench(jax.random.key(12), pamid.sarosi.table_3_1(), proto)
+    c = pamid.simulate_isometric_bench(jax.random.key(13), pamid.sarosi.table_3_1(), proto)
     pd.testing.assert_frame_equal(a, b)
     for column in ("pressure_kPa", "force_N", "contraction_pct", "time_s"):
         assert (a[column] != c[column]).mean() > 0.5, column
@@ -270,10 +270,11 @@ def test_blank_direction_and_dropped_columns():
     assert frame.loc[frame["muscle"] == "M0003", "trial"].str.fullmatch(r"T\d+").all()
     with pytest.raises(ValueError, match="muscles not in the file.*M9"):
         pamid.simulate_isometric_bench(
-            jax.random.key(0), pamid.table_3_1(), blank_direction_for=["M9"]
+            jax.random.key(0), pamid.sarosi.table_3_1(), blank_direction_for=["M9"]
         )
     with pytest.raises(ValueError, match="columns not in the file.*speed"):
-        pamid.simulate_isometric_bench(jax.random.key(0), pamid.table_3_1(), drop_columns=["speed"])
+        pamid.simulate_isometric_bench(jax.random.key(0), pamid.sarosi.table_3_1(),
+                                       drop_columns=["speed"])
 
 
 @pytest.mark.parametrize("kind", ["isometric_stairs", "isometric_ramp", "sweeps_noisy"])
@@ -384,6 +385,7 @@ def test_bad_requests_get_clear_errors():
     with pytest.raises(ValueError, match="too few"):
         pamid.virtual_lab_file(jax.random.key(0), "isometric_stairs", 12, min_force_N=None)
     with pytest.raises(ValueError, match="muscle ids"):
-        pamid.simulate_isometric_bench(jax.random.key(0), pamid.table_3_1(), muscle_ids=["a", "b"])
+        pamid.simulate_isometric_bench(jax.random.key(0), pamid.sarosi.table_3_1(),
+                                       muscle_ids=["a", "b"])
     with pytest.raises(ValueError, match="pressure_noise_kPa must be zero or positive"):
         pamid.SarosiProtocol(pressure_noise_kPa=-1.0)

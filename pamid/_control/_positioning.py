@@ -26,7 +26,7 @@ holds it exactly). The hysteresis state z_i moves the muscle onto the loop's low
 (z = 1) within a travel of a few δ after it starts to shorten and onto the upper one
 (z = −1) after it starts to lengthen, and keeps its value at rest, so the loop has memory
 and no rate dependence, like the measured loop (the ±h·p loop of
-:func:`pamid.hysteresis_branches`; h = 3 N/bar, the loop of pamid's bundled data set;
+:func:`pamid.sarosi.hysteresis_branches`; h = 3 N/bar, the loop of pamid's bundled data set;
 δ = 0.05 mm assumed). A loop written as h·p·tanh(ẏ/v) instead forgets its branch at rest:
 in a first version the shut rig crept back towards the loop's middle after each move and
 the controller kept hunting around the target.

@@ -160,7 +160,8 @@ class NoOscillationError(ValueError):
 
 
 def _stats():
-    """scipy.stats, imported on first use: it and scipy.signal cost ~0.8 s of start-up."""
+    """scipy.stats, imported on first use: it and scipy.signal are slow to import
+    (benchmarks/README.md, "Figures that used to live in docstrings", (h))."""
     import scipy.stats
 
     return scipy.stats

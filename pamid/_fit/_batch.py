@@ -200,9 +200,9 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
 
     def run(start):
         stop = min(start + chunk, n)
-        # Contiguous slices (a gather of the same lanes took 4.1 ms per chunk of 512 lanes
-        # of 300 samples, the slice 1.1 ms: benchmarks/profile_pieces.py --only-cores); the
-        # last chunk is padded by its final lane.
+        # Contiguous slices (a gather of the same lanes is slower: benchmarks/README.md,
+        # "Figures that used to live in docstrings", (d)); the last chunk is padded by its
+        # final lane.
         part = jax.tree.map(lambda a: _lanes(a, start, stop, chunk), arrays)
         if device is None:
             out = fn(*part)
@@ -214,13 +214,12 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
     workers = min(len(starts), workers)
     if workers > 1:
         # On the CPU as NumPy (no copy): slicing a JAX array is an operation queued on the
-        # device behind the running chunks (measured by hand, 20 chunks: 128 ms from JAX
-        # arrays, 101 ms from NumPy views).
+        # device behind the running chunks (the same README section, (d)).
         arrays = jax.tree.map(np.asarray, arrays)
         # A CPU device runs pamid's small kernels on one core per call, and calls made from
-        # several threads run side by side (JAX releases the GIL while XLA runs): the Sárosi
-        # solve of 10,000 muscles of 300 samples in chunks of 512 took 186 ms from one
-        # thread and 98 ms from two, on two cores (benchmarks/profile_pieces.py --only-cores).
+        # several threads run side by side (JAX releases the GIL while XLA runs): two
+        # threads on two cores nearly halve the Sárosi solve of 10,000 muscles
+        # (benchmarks/README.md, "Figures that used to live in docstrings", (d)).
         outputs = list(_pool(workers).map(run, starts))
     else:
         outputs = [run(start) for start in starts]
@@ -240,8 +239,9 @@ def _lanes(a, start, stop, size):
 
 @functools.cache
 def _pool(workers: int) -> concurrent.futures.ThreadPoolExecutor:
-    """A pool of ``workers`` threads kept for the life of the process (starting threads
-    for every call cost ~0.5 ms, against ~10 ms for 1000 muscles)."""
+    """A pool of ``workers`` threads kept for the life of the process: starting threads
+    for every call is a noticeable share of a small batch (benchmarks/README.md, "Figures
+    that used to live in docstrings", (d))."""
     return concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="pamid-lanes")
 
 

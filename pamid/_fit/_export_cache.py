@@ -2,9 +2,9 @@
 
 JAX's persistent compilation cache skips XLA's compile, but every process still traces the
 Python code and lowers it to StableHLO before it can look the compiled program up; for the
-one-muscle ``pamid fit`` that was most of the run (measured by hand, with a warm
-compilation cache: 0.45 s for the solve, 0.22 s for the statistics, 0.78 s for the profile
-intervals; ``benchmarks/fit_batch.py`` section 6 times the command as a whole). Here a function
+one-muscle ``pamid fit`` that was most of the run (benchmarks/README.md, "Figures that used
+to live in docstrings", (e); ``benchmarks/fit_batch.py`` section 6 times the command as a
+whole). Here a function
 is exported once per input shape with :mod:`jax.export` and serialized; a later process
 deserializes it (milliseconds) and goes straight to the compilation cache.
 
@@ -165,8 +165,8 @@ def _load_or_export(key: str, fn, args):
     _remember(path, data)
     # The program as later processes will read it: compiled from the exported object
     # itself, its lowering differed from the deserialized one's, so the compilation cache
-    # missed once more in the second process (pamid diagnose, 3,000 rows: 17 s of CPU in
-    # the second run against 4.6 s in the third).
+    # missed once more in the second process (benchmarks/README.md, "Figures that used to
+    # live in docstrings", (e)).
     return jax.jit(export.deserialize(bytearray(data)).call)
 
 

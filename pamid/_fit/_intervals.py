@@ -27,7 +27,8 @@ from ._spec import ModelSpec
 
 def t_critical(dof, level: float = 0.95):
     """Two-sided Student-t quantile for ``level`` with ``dof`` degrees of freedom."""
-    # scipy.special's inverse t distribution: scipy.stats would cost ~0.5 s more at start-up
+    # scipy.special's inverse t distribution: scipy.stats costs much more at start-up
+    # (benchmarks/README.md, "Figures that used to live in docstrings", (h))
     from scipy.special import stdtrit
 
     dof = np.asarray(dof, float)

@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-# NumPy, not jnp: a jnp constant would start the JAX backend at import (~0.15 s).
+# NumPy, not jnp: a jnp constant would start the JAX backend at import (benchmarks/README.md,
+# "Figures that used to live in docstrings", (h)).
 _S_GRID = np.concatenate([-np.geomspace(30.0, 0.05, 20), np.geomspace(0.05, 3.0, 4)])
 
 

@@ -142,8 +142,9 @@ def summary(dt):
 # --------------------------------------------------------------------------------------
 # Diagnostics, vectorized over muscles and variables.
 #
-# ArviZ computes R-hat and ESS one (muscle, variable) cell at a time in Python: about 7 ms
-# per cell here, 10 s for 200 muscles of 7 variables. The functions below compute the same
+# ArviZ computes R-hat and ESS one (muscle, variable) cell at a time in Python, seconds for
+# hundreds of muscles (benchmarks/README.md, "Figures that used to live in docstrings",
+# (j)). The functions below compute the same
 # quantities (Vehtari et al. 2021, as arviz-stats 1.x implements them: rank-normalized split
 # R-hat, bulk and tail ESS with Geyer's initial monotone sequence) on whole arrays;
 # tests/test_mcmc.py checks them against ArviZ cell by cell. Input: (..., chain, draw).

@@ -23,15 +23,14 @@ explores heavy tails better: with the Student-t likelihood on data with outliers
 noise σ has a faint far tail (≈ 0.5% of the mass near σ ≈ 3 N) that pure DE visited less
 often. ``de_fraction=0`` gives the pure stretch move, ``1`` pure DE.
 
-Which is faster (``benchmarks/mcmc_batch.py``, 2 CPU cores, 32 walkers, 300 samples per
-muscle): per step and muscle, the stacked sampler took 29–46 µs at M = 1, 10, 100 and 1000
-muscles, a loop of emcee samplers 0.93–1.15 ms with the JAX log-probability and
-0.42–0.44 ms with a NumPy one (one NumPy call, 79 µs, beats one jitted JAX call with its
-conversions, 163 µs, as the issue says). The stacked sampler's gain is the absence of
-Python between steps, not the batching: its cost per muscle hardly changes with M. It
-compiles in 1–6 s (cached on disk by the CLI); for one muscle in a fresh process without
-that cache, a whole emcee run (≈ 1.2 s for 2000 steps) is about as fast. So
-``sampler="auto"`` means ``"stacked"`` (``AUTO_SAMPLER``).
+Which is faster (``benchmarks/mcmc_batch.py``; figures: benchmarks/README.md, "Figures
+that used to live in docstrings", (a)): per step and muscle the stacked sampler is about an
+order of magnitude faster than a loop of emcee samplers, with a JAX or a NumPy
+log-probability. Its gain is the absence of Python between
+steps, not the batching: its cost per muscle hardly changes with M. Its compilation is
+cached on disk by the CLI; for one muscle in a fresh process without that cache, a whole
+emcee run is about as fast. So ``sampler="auto"`` means ``"stacked"`` (``AUTO_SAMPLER``).
+The stacked sampler's kernel and moves are public (:mod:`._ensemble`, ``pamid.ensemble_step``).
 
 Run length. Walkers start in a small ball around the least-squares optimum (0.1 Wald
 standard errors). The chains grow in chunks; every ``check_every`` steps the integrated
@@ -49,7 +48,6 @@ import functools
 import math
 import sys
 import warnings
-from collections.abc import Callable
 from typing import NamedTuple
 
 import jax
@@ -61,11 +59,11 @@ from .._fit._api import FitResult, bench_to_fit_data, fit_least_squares
 from .._fit._batch import FitData
 from .._fit._spec import ModelSpec, get_model
 from . import _posterior
+from ._ensemble import EnsembleState, de_move, run_ensembles, stretch_move
 from ._options import SAMPLERS
 from ._posterior import DEFAULT_NU, LIKELIHOODS, Prior, default_prior, restricted_prior
 
 AUTO_SAMPLER = "stacked"  # measured faster at M = 1 … 1000 (benchmarks/mcmc_batch.py)
-STRETCH_A = 2.0
 DE_FRACTION = 0.8  # see the module docstring
 R_HAT_MAX = 1.05  # a muscle whose worst R-hat (walkers as chains) exceeds this: not converged
 
@@ -75,97 +73,21 @@ class McmcBudgetWarning(UserWarning):
 
 
 # --------------------------------------------------------------------------------------
-# The stretch move, stacked over muscles.
-
-
-class EnsembleState(NamedTuple):
-    """Walkers of M independent ensembles: positions (M, W, d) and log-posteriors (M, W)."""
-
-    position: jax.Array
-    log_prob: jax.Array
-
-
-def _half_step(key, active, lp_active, complement, log_prob_fn, de_fraction, a, gamma0):
-    """Update every walker of ``active`` (M, h, d) against the ``complement`` walkers of the
-    same muscle: with probability ``de_fraction`` a differential-evolution move (ter Braak
-    2006; emcee's DEMove), x' = x + γ·(c_j − c_k) with j ≠ k and γ = γ0·(1 + 10⁻⁵·N(0, 1)),
-    else a stretch move (Goodman & Weare 2010, eq. 10–11), x' = c_j + z·(x − c_j) with
-    z ~ g(z) ∝ 1/√z on [1/a, a]. The move is drawn per walker, independently of the state,
-    so the update is a mixture of two valid Metropolis–Hastings kernels. Both proposals have
-    the form x + s·(A − B), so one log-posterior call serves both."""
-    m, h, d = active.shape
-    n_c = complement.shape[1]
-    k_sel, k_z, k_j, k_k, k_g, k_u = jax.random.split(key, 6)
-    j = jax.random.randint(k_j, (m, h), 0, n_c)
-    k = (j + jax.random.randint(k_k, (m, h), 1, n_c)) % n_c  # any walker but j
-    c_j = jnp.take_along_axis(complement, j[..., None], axis=1)
-    c_k = jnp.take_along_axis(complement, k[..., None], axis=1)
-    z = jnp.square((a - 1.0) * jax.random.uniform(k_z, (m, h), active.dtype) + 1.0) / a
-    gamma = gamma0 * (1.0 + 1e-5 * jax.random.normal(k_g, (m, h), active.dtype))
-    use_de = jax.random.uniform(k_sel, (m, h), active.dtype) < de_fraction
-    scale = jnp.where(use_de, gamma, z - 1.0)[..., None]
-    base = jnp.where(use_de[..., None], c_j, active)
-    other = jnp.where(use_de[..., None], c_k, c_j)
-    proposal = active + scale * (base - other)
-    log_correction = jnp.where(use_de, 0.0, (d - 1.0) * jnp.log(z))
-    lp_new = log_prob_fn(proposal)
-    log_u = jnp.log(jax.random.uniform(k_u, (m, h), active.dtype))
-    accept = log_u < log_correction + lp_new - lp_active
-    return (jnp.where(accept[..., None], proposal, active),
-            jnp.where(accept, lp_new, lp_active), accept)
-
-
-def ensemble_step(key, state: EnsembleState, log_prob_fn: Callable,
-                  de_fraction: float = 0.8, a: float = STRETCH_A,
-                  gamma0: float | None = None) -> tuple[EnsembleState, jax.Array]:
-    """One step of every ensemble: the first half of the walkers moves against the second,
-    then the second against the updated first (emcee's red-blue scheme). ``log_prob_fn``
-    maps (M, h, d) to (M, h). Returns the new state and the accepted moves per muscle.
-
-    The two halves run as a two-iteration loop, so the log-posterior appears once in the
-    compiled program (compilation time is what a short run costs)."""
-    pos, lp = state
-    m, n_walkers, d = pos.shape
-    h = n_walkers // 2
-    gamma0 = 2.38 / math.sqrt(2 * d) if gamma0 is None else gamma0
-
-    def half(carry, xs):
-        pos, lp, acc = carry
-        k, first = xs
-        start, other = first * h, (1 - first) * h
-        active = jax.lax.dynamic_slice_in_dim(pos, start, h, axis=1)
-        comp = jax.lax.dynamic_slice_in_dim(pos, other, h, axis=1)
-        lp_active = jax.lax.dynamic_slice_in_dim(lp, start, h, axis=1)
-        new, lp_new, accepted = _half_step(k, active, lp_active, comp, log_prob_fn,
-                                           de_fraction, a, gamma0)
-        pos = jax.lax.dynamic_update_slice_in_dim(pos, new, start, axis=1)
-        lp = jax.lax.dynamic_update_slice_in_dim(lp, lp_new, start, axis=1)
-        return (pos, lp, acc + accepted.sum(axis=1, dtype=acc.dtype)), None
-
-    acc0 = jnp.zeros(m, jnp.int32)
-    (pos, lp, acc), _ = jax.lax.scan(half, (pos, lp, acc0),
-                                     (jax.random.split(key, 2), jnp.arange(2)))
-    return EnsembleState(pos, lp), acc
+# The stacked sampler: pamid's ensemble kernel (``_ensemble``) over the muscles' posteriors.
 
 
 @functools.partial(jax.jit, static_argnames=("log_prob", "n_draws", "thin", "de_fraction"))
 def _advance_stacked(log_prob, key, state, x, y, w, n_draws, thin, de_fraction=DE_FRACTION):
-    """``n_draws · thin`` steps of all ensembles; every ``thin``-th state is kept."""
+    """``n_draws · thin`` steps of all ensembles; every ``thin``-th state is kept. The moves:
+    differential evolution with probability ``de_fraction``, else the stretch move."""
     per_walker = jax.vmap(log_prob, in_axes=(0, None, None, None))
     per_muscle = jax.vmap(per_walker, in_axes=(0, 0, 0, 0))
 
     def lp_fn(z):
         return per_muscle(z, x, y, w)
 
-    def step(state, k):
-        return ensemble_step(k, state, lp_fn, de_fraction)
-
-    def draw(state, k):
-        state, acc = jax.lax.scan(step, state, jax.random.split(k, thin))
-        return state, (state.position, state.log_prob, acc.sum(axis=0))
-
-    state, (pos, lp, acc) = jax.lax.scan(draw, state, jax.random.split(key, n_draws))
-    return state, pos, lp, acc.sum(axis=0)
+    moves = ((de_move, de_fraction), (stretch_move, 1.0 - de_fraction))
+    return run_ensembles(key, state, lp_fn, n_draws, thin, moves)
 
 
 @functools.cache

@@ -8,15 +8,17 @@ Equation of motion (one rotational degree of freedom β, rad):
     J·β̈ = T_muscles(β, β̇) − M·cos(β − β_h)
 
 * J: moment of inertia of the arm and its masses about the pivot (Cullinan eq. 12 with its
-  squares restored, :func:`pamid.moment_of_inertia_eq12`; 0.46 kg·m² with two 1.2 kg masses).
+  squares restored, :func:`pamid.cullinan.moment_of_inertia_eq12`; 0.46 kg·m² with two 1.2 kg
+  masses).
 * T_muscles = r·(F1 − F2) (eq. 4), each F_i from eq. 3 INCLUDING its damper term −G·ẏ_i,
   with ẏ1 = r·β̇ and ẏ2 = −r·β̇ (eq. 5), cable stretch and slack muscles as in
   :mod:`pamid._models._joint` (it is :func:`pamid._models._joint.joint_state`, the function
-  behind :func:`pamid.muscle_state` and :func:`pamid.closed_system_torque_Nm`).
+  behind :func:`pamid.cullinan.muscle_state` and :func:`pamid.cullinan.closed_system_torque_Nm`).
 * Valves shut (section V): each muscle was sealed at the joint angle β_s with the gauge
   pressure P_i; its air mass is then constant and its pressure follows its volume,
   P′_i(y_i) = (P_i + P_atm)·(V(y_i,s)/V(y_i))^n − P_atm
-  (:func:`pamid.closed_system_pressure_kPa`; n = 1 isothermal by default, n = 1.4 adiabatic).
+  (:func:`pamid.cullinan.closed_system_pressure_kPa`; n = 1 isothermal by default, n = 1.4
+  adiabatic).
 * Gravity. Angle convention: the arm is HORIZONTAL at β = β_h (default 0) and +β raises it,
   so the weight of the arm and its masses exerts the torque −M·cos(β − β_h), M = g·Σ m·l_cg
   (N·m; :func:`gravity_moment_Nm`). This is the reading of Cullinan's Fig. 6 caption: "2
@@ -92,7 +94,8 @@ class JointArm(eqx.Module):
     Fields (any may carry leading batch axes):
 
     * ``muscle1``, ``muscle2``: Cullinan eq. 3 constants (N, kPa, mm, s), G included.
-    * ``geometry``: pulley radius, β_range, cable compliance (:class:`pamid.JointGeometry`).
+    * ``geometry``: pulley radius, β_range, cable compliance
+      (:class:`pamid.cullinan.JointGeometry`).
     * ``volume``: the volume model of both muscles (:class:`pamid.PamVolume`).
     * ``inertia_kg_m2``: J about the pivot (Cullinan eq. 12, corrected).
     * ``gravity_moment_Nm``: M, the gravity torque of the arm when horizontal (≥ 0).

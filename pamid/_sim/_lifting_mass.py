@@ -48,13 +48,9 @@ Reference: ``scipy.integrate.solve_ivp(method="DOP853", rtol=1e-10, atol=1e-12)`
 run. Batch: 1000 runs of 5 s with output at 1 kHz (pressures 300–500 kPa, loads 30–70 kg,
 released within ±15 mm of the static solution; run 0 is Fig. 3-6). Each candidate at the
 cheapest setting that keeps every run within 1e-9 m of the reference (the encoder reads
-1e-5 m). Measured on a shared 2-core CPU (load ≈ 3), 2026-11-21:
-
-    integrator                  setting                 max error   steps   compile   run
-    RK4 in lax.scan             h = 1 ms (1 per sample)  7.6e-11 m   5000    3.4 s    0.67 s
-    diffrax Tsit5 + PID         rtol 1e-8, atol 1e-11    2.5e-10 m    918    5.9 s    1.74 s
-    diffrax Kvaerno5 + PID      rtol 1e-10, atol 1e-13   2.1e-10 m   7411   16.7 s    56 s
-    solve_ivp DOP853 loop       rtol 1e-10 (reference)       —          —        —    68 s
+1e-5 m): RK4 in ``lax.scan`` at one step per sample, diffrax's Tsit5 and Kvaerno5 with a PID
+controller, and the ``solve_ivp`` loop; the table of errors, steps, compile and run times is
+in benchmarks/README.md, "Figures that used to live in docstrings", (b).
 
 RK4 wins: at a 1 kHz output grid one RK4 step per sample is already 13× more accurate than
 needed, while the adaptive solver, though it takes 5× fewer steps, runs its step loop in
@@ -236,7 +232,7 @@ def zeta_from_hysteresis(
 ) -> Float[Array, "..."]:
     """ζ = ΔU/U0 of the hysteresis loop over [κ_min, κ_max] at a pressure, Sárosi eq. 2.3–2.5.
 
-    (A thin wrapper of :func:`pamid.hysteresis_damping`; ζ depends on neither the load nor
+    (A thin wrapper of :func:`pamid.sarosi.hysteresis_damping`; ζ depends on neither the load nor
     the point of the loop at which the stiffness is taken.)
     """
     out = hysteresis_damping(

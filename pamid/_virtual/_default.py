@@ -26,6 +26,8 @@ def default_protocol() -> SarosiProtocol:
 
 
 def default_bench_path() -> Path:
+    """The bundled data set (a virtual bench of Table 3-1's muscle; module text): the file
+    ``pamid demo`` fits, for trying pamid without data of one's own."""
     return Path(__file__).resolve().parent.parent / "data" / DEFAULT_FILE
 
 
