@@ -20,7 +20,6 @@ import pytest
 import pamid
 from pamid._decays._coulomb import DECAY_EFFECTS as DECAY_FIT_NAMES
 from pamid._diagnose._api import diagnose
-from pamid._diagnose._report import format_report
 from pamid._effects._definitions import (
     DECAY_EFFECTS,
     STATIC_EFFECTS,
@@ -30,6 +29,7 @@ from pamid._effects._definitions import (
 )
 from pamid._effects._inject import InjectedDrift, InjectedTemperature
 from pamid._virtual._isometric import virtual_lab_file
+from pamid.report import diagnosis_report
 
 ROWS = 1260  # 105 samples a trial: not in step with the valve (a real logger is not)
 CLEAN = {"transient_N_per_kPa": 0.0, "pressure_offset_kPa": 0.0,
@@ -76,7 +76,9 @@ def test_every_effect_names_an_injector_that_exists_and_physical_bounds():
     assert len(names) == len(set(names))
     assert {"transient", "softening", "sensor_offset", "compliance", "hysteresis"} <= set(names)
     for d in STATIC_EFFECTS:
-        _resolve(d.injector)  # raises if the virtual bench has no such injector
+        assert d.injectors
+        for injector in d.injectors:
+            _resolve(injector)  # raises if the virtual bench has no such injector
         for c in d.constants:
             assert c.lower < c.upper
     bound = {d.name: {c.name: (c.lower, c.upper) for c in d.constants} for d in STATIC_EFFECTS}
@@ -86,10 +88,15 @@ def test_every_effect_names_an_injector_that_exists_and_physical_bounds():
     transient = next(d for d in STATIC_EFFECTS if d.name == "transient")
     assert transient.grid.lower == 0.0  # τ > 0
     # g may be negative (a pneumatic lag), but never a lag of more than the whole step
-    muscle = SimpleNamespace(max_dF_dp_N_per_kPa=2.0)
+    muscle = SimpleNamespace(max_dF_dp_N_per_kPa=2.0, step_slope=None)
     assert transient.violation({"g": -0.5}, _Named("transient"), None, muscle) is None
     assert "not physical" in transient.violation({"g": -2.5}, _Named("transient"), None,
                                                  muscle)
+    # where the steps are of another input (the rod's position), the slope is the force's
+    # along that input, of either sign
+    rod = SimpleNamespace(max_dF_dp_N_per_kPa=2.0, step_slope=-4.0)
+    assert transient.violation({"g": 3.0}, _Named("transient"), None, rod) is None
+    assert "not physical" in transient.violation({"g": 4.5}, _Named("transient"), None, rod)
     # the decay diagnosis reads the same registry
     assert DECAY_FIT_NAMES == {e.name: e.fit_name for e in DECAY_EFFECTS}
     friction = next(e for e in DECAY_EFFECTS if e.name == "coulomb_friction")
@@ -137,8 +144,8 @@ def test_a_rig_that_shortens_under_load_never_reports_a_negative_compliance(tmp_
     assert not row["significant"]  # ... but it is not physical
     assert "compliance would need c = -" in row["unphysical"]
     assert "mm/N" in row["unphysical"] and "not physical" in row["unphysical"]
-    assert "compliance would need c = -" in format_report(d)
-    assert "not selected" in format_report(d)
+    assert "compliance would need c = -" in diagnosis_report(d)
+    assert "not selected" in diagnosis_report(d)
 
 
 # -- detection in isometric files ---------------------------------------------------------------

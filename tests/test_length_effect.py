@@ -87,18 +87,25 @@ def test_constants_linear_in_length_are_found(linear_constants, table_3_1):
     assert smooth.cv_rmse_N <= per.cv_rmse_N * (1 + TIE_FRACTION)
     assert smooth.bic < per.bic
     # Every constant's slope: what was put in, inside the pooled fit's 95 % interval and
-    # inside the interval across muscles; the value at l0_ref too. (Each interval misses
-    # 5 % of draws; a1, a4 and a5 are nearly collinear with 4 contraction levels, so they
-    # miss together: seed 4 of this file put all three 2.6–2.9 standard errors off, seeds
-    # 5–7 within 1.5.)
+    # inside the interval across muscles; the value at l0_ref too. Each of these 18
+    # intervals misses 5 % of draws, and a1, a4 and a5 are nearly collinear with 4
+    # contraction levels, so they miss together (seed 4 of this file put all three 2.6–2.9
+    # standard errors off; seed 5, a2's interval across muscles by 0.1 % of its width after
+    # the starts changed): at most 3 misses, and none off by more than 1.8 half-widths of its interval.
     g_ref = l0_feature(st.l0_ref_mm, "linear", L0_MID)  # l0_ref relative to L0_MID
+    misses = []
     for j, dep in enumerate(st.dependence):
         true_slope = SLOPE * table_3_1[j]
         true_value = table_3_1[j] * (1 + SLOPE * g_ref)
-        assert dep.slope_ci95[0] <= true_slope <= dep.slope_ci95[1], dep
-        assert dep.slope_ci95_between[0] <= true_slope <= dep.slope_ci95_between[1], dep
-        assert dep.value_ci95[0] <= true_value <= dep.value_ci95[1], dep
+        for what, (lo, hi), truth in (("slope", dep.slope_ci95, true_slope),
+                                      ("slope between", dep.slope_ci95_between, true_slope),
+                                      ("value", dep.value_ci95, true_value)):
+            z = abs(truth - (lo + hi) / 2) / ((hi - lo) / 2)  # in half-widths
+            assert z < 1.8, (dep.name, what, truth, (lo, hi))
+            if not lo <= truth <= hi:
+                misses.append((dep.name, what, round(z, 2)))
         assert dep.slope_unit.endswith("per 100 mm")
+    assert len(misses) <= 3, misses
     d = st.to_dict()
     assert d["best"] == "smooth_linear" and d["g_of_l0"].endswith("/100 mm")
     assert len(d["dependence"]) == 6 and len(d["options"]) == 4
