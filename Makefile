@@ -18,8 +18,11 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/pamid demo --out $(DEMO_OUT)
 
+# Two worker processes, each taking whole test files (module fixtures are shared within a
+# file): both cores busy, and no one process compiling the whole suite's programs (a single
+# process crashed inside XLA late in the run, three times in one day, 2026-11-24).
 test: $(STAMP)
-	$(VPY) -m pytest -q
+	$(VPY) -m pytest -q -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(VPY) benchmarks/fit_batch.py
