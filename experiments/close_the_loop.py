@@ -118,10 +118,10 @@ def main(argv=None) -> int:
               f"selected an effect, {c['n_unexplained']} listed something as unexplained")
     if MARTENS.is_file():
         d = pamid.diagnose(MARTENS)
-        report = d.report()
+        report = pamid.report.diagnosis_report(d)
         write_text_atomic(out / "martens_report.txt", report + "\n")
-        d.plot_residuals(out / "martens_residuals_before_after.png")
-        d.plot_time_order(out / "martens_residual_time_order.png")
+        pamid.report.plot_diagnosis_residuals(d, out / "martens_residuals_before_after.png")
+        pamid.report.plot_diagnosis_time_order(d, out / "martens_residual_time_order.png")
         summary["martens"] = d.to_dict()
         print(f"\nMeasured: {MARTENS.name} ({d.n} uncensored points)")
         print(f"  selected: {', '.join(d.selected) or 'nothing'}; RMSE {d.rmse_before:.3f} → "

@@ -16,7 +16,7 @@ Per muscle and pooled over the muscles:
    RMSE, max error and CV RMSE before and after, and what stays unexplained;
 3. per-bin tables of the residual before and after: by contraction level and pressure bin,
    by time since the last pressure step, by repeat;
-4. the length study (``pamid._diagnose._length.length_study``): one fit per muscle against
+4. the length study (``pamid.length_study``): one fit per muscle against
    constants smooth in l0 and one set for every length, by CV RMSE on held-out trials;
 5. plots: force against pressure per contraction level (inflating/deflating marked) before
    and after; residual against time since the last step; residual against repeat; the
@@ -50,7 +50,6 @@ import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._diagnose._length import l0_feature, length_study  # noqa: E402
 from pamid.io import json_ready, save_figure_atomic, write_text_atomic  # noqa: E402
 from pamid.sarosi import sarosi_force  # noqa: E402
 
@@ -373,14 +372,14 @@ def plot_repeat(table: pd.DataFrame, out: Path) -> Path | None:
 def plot_constants_vs_l0(study, base: dict, out: Path) -> Path:
     l0 = np.asarray(study.l0_mm)
     grid = np.linspace(l0.min(), l0.max(), 100)
-    g = l0_feature(grid, study.form, study.l0_ref_mm)
+    along = study.constants_at(grid)
     fig, axes = plt.subplots(2, 3, figsize=(11, 6.2))
     for ax, dep in zip(axes.ravel(), study.dependence):
         vals = np.array([base[m]["params"][dep.name]["value"] for m in study.muscles])
         ci = np.array([base[m]["params"][dep.name]["ci95_cluster"] for m in study.muscles])
         ax.errorbar(l0, vals, yerr=[vals - ci[:, 0], ci[:, 1] - vals], fmt="o", color="k",
                     ms=4, capsize=3, label="one fit per muscle (cluster 95 %)")
-        ax.plot(grid, dep.value + dep.slope * g, color="tab:blue",
+        ax.plot(grid, along[dep.name], color="tab:blue",
                 label=f"constants {study.form} in l0")
         ax.set_title(f"{dep.name} [{dep.unit}]", fontsize=9)
         ax.set_xlabel("resting length l0 [mm]")
@@ -582,7 +581,7 @@ def main(argv=None) -> int:
 
     say("length study on every muscle")
     len_bench = diag_bench if len(chosen) == len(bench.muscles) else subset(bench, None, per)
-    study = length_study(len_bench)
+    study = pamid.length_study(len_bench)
 
     pooled = diagnosis_summary(d_all)
     summary = {

@@ -31,11 +31,11 @@ from pathlib import Path
 import pamid
 from pamid import compare_models
 
-# The command line's table and plots (``pamid compare``) and the registry of models: no
-# public names yet (tests/test_public_api.py lists this script as an exception).
-from pamid._commands.compare import format_table, write_plots
+# The registry of models: no public name yet (tests/test_public_api.py lists this script as
+# an exception).
 from pamid._fit._spec import MODELS
 from pamid.io import write_text_atomic
+from pamid.report import comparison_table, write_comparison_plots
 
 NAME = "compare_models"
 ROOT = Path(__file__).resolve().parents[1]
@@ -101,11 +101,11 @@ def main(argv=None) -> int:
         d["source"] = filename
         d["seconds"] = seconds[filename]
         out = args.out / Path(filename).stem
-        d["plots"] = write_plots(bench, result, out, max_plots=len(bench.muscles))
+        d["plots"] = write_comparison_plots(result, bench, out, max_plots=len(bench.muscles))
         write_text_atomic(out / "compare.json", json.dumps(d, indent=2) + "\n")
         results[filename] = d
         print(f"\n{filename} ({seconds[filename]} s for the fits)\n")
-        print(format_table(d))
+        print(comparison_table(result))
     if not results:
         print("no measured data found: nothing to compare")
         return 0

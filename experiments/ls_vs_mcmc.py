@@ -189,10 +189,10 @@ def main(argv=None):
         res_t, _ = compare("martens-student-t", bench, jax.random.fold_in(key, 11),
                            likelihood="student-t")
         print_table(res_t)
-        martens.plot_pair(0, args.out / "martens_pair.png",
-                          "Posterior of Sárosi's constants — Martens DMSP-10-250")
-        martens.plot_predictive(0, args.out / "martens_predictive.png",
-                                "Posterior predictive — Martens DMSP-10-250")
+        pamid.report.plot_pair(martens, 0, args.out / "martens_pair.png",
+                               "Posterior of Sárosi's constants — Martens DMSP-10-250")
+        pamid.report.plot_predictive(martens, 0, args.out / "martens_predictive.png",
+                                     "Posterior predictive — Martens DMSP-10-250")
     else:
         res_t = None
         print(f"\n{args.data} not found: the measured data set is skipped.")

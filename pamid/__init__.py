@@ -72,6 +72,8 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     # Closing the loop.
     "Diagnosis": ("._diagnose._result", "Diagnosis"),
     "diagnose": ("._diagnose._api", "diagnose"),
+    "LengthStudy": ("._diagnose._length", "LengthStudy"),
+    "length_study": ("._diagnose._length", "length_study"),
     # Virtual benches and the effects they can hide in their data.
     "SarosiProtocol": ("._virtual._sweeps", "SarosiProtocol"),
     "simulate_sarosi_bench": ("._virtual._sweeps", "simulate_sarosi_bench"),
@@ -140,6 +142,7 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     # The papers' artefacts, and writing results as pamid's commands do.
     "cullinan": (".cullinan", None),
     "io": (".io", None),
+    "report": (".report", None),
     "sarosi": (".sarosi", None),
 }
 
@@ -253,6 +256,7 @@ def __dir__():
 if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPORTS``
     from . import cullinan as cullinan
     from . import io as io
+    from . import report as report
     from . import sarosi as sarosi
     from ._control._positioning import PositioningRig as PositioningRig
     from ._control._positioning import PositioningRun as PositioningRun
@@ -288,6 +292,8 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._decays._posterior import decay_prior as decay_prior
     from ._decays._posterior import fit_decay_mcmc as fit_decay_mcmc
     from ._diagnose._api import diagnose as diagnose
+    from ._diagnose._length import LengthStudy as LengthStudy
+    from ._diagnose._length import length_study as length_study
     from ._diagnose._result import Diagnosis as Diagnosis
     from ._effects._inject import InjectedCompliance as InjectedCompliance
     from ._effects._inject import InjectedCovariate as InjectedCovariate

@@ -25,7 +25,6 @@ import warnings
 from pathlib import Path
 
 from ._commands._common import stage
-from ._io import safe_file_name
 
 EXIT_BAD_INPUT = 2
 #: Arguments of the commands that name input files (never written; see pamid._io).
@@ -120,29 +119,6 @@ def _format_table(result, published=None) -> str:
     return "\n".join(lines)
 
 
-def _write_plots(bench, result, out: Path, max_plots: int) -> list[str]:
-    from . import _plot
-    from ._data._curves import find_curves
-
-    written = []
-    for i, muscle in enumerate(bench.muscles[:max_plots]):
-        frame = bench.for_muscle(muscle)  # a few muscles only
-        name = safe_file_name(muscle) if bench.has_muscle_column else "muscle"
-        label = muscle if bench.has_muscle_column else Path(bench.path).name
-        title = f"{result.spec.source} fit — {label}"
-        curves = find_curves(frame, contraction_column=result.spec.contraction_column)
-        _plot.plot_fit(frame, result.spec, result.theta[i], out / f"fit_{name}.png", title,
-                       curves=curves)
-        _plot.plot_residuals(frame, result.spec, result.theta[i], out / f"residuals_{name}.png",
-                             f"Residuals — {title}", curves=curves)
-        written += [f"fit_{name}.png", f"residuals_{name}.png"]
-    if result.n_muscles > 1:
-        _plot.plot_rmse_histogram(result.rmse_N, out / "rmse_histogram.png",
-                                  f"Fit RMSE across {result.n_muscles} muscles")
-        written.append("rmse_histogram.png")
-    return written
-
-
 def _cmd_fit(args) -> int:
     import jax
 
@@ -191,11 +167,15 @@ def _cmd_fit(args) -> int:
     if args.out:
         out = Path(args.out)
         stage(f"writing plots to {final_place(out)}", quiet)
-        payload["plots"] = _write_plots(bench, result, out, args.max_plots)
+        from ._report._fit import write_fit_plots
+
+        payload["plots"] = write_fit_plots(result, bench, out, args.max_plots)
         write_text_atomic(out / "fit.json",
                           json.dumps({**result.to_dict(), **payload}, indent=2) + "\n")
     if args.json:
-        print(result.to_json(**payload))  # json.dumps({**result.to_dict(), **payload})
+        from ._report._fit import fit_json
+
+        print(fit_json(result, **payload))  # json.dumps({**result.to_dict(), **payload})
     else:
         print(_format_table(result))
         if not result.converged.all():
@@ -256,7 +236,8 @@ def _cmd_demo(args) -> int:
 
     # Closing the loop: what does eq. 2.1 miss in these data, and what does adding it gain?
     from ._diagnose._api import diagnose
-    from ._diagnose._report import plot_residuals
+    from ._report._diagnosis import plot_diagnosis_residuals
+    from ._report._fit import write_fit_plots
 
     diag = diagnose(bench)
     print("\nClosing the loop (pamid diagnose): the residual of eq. 2.1 against every covariate, "
@@ -273,8 +254,8 @@ def _cmd_demo(args) -> int:
             print(f"  {name} {pname} = {c['value']:.4g} {c['unit']} [{lo:.4g}, {hi:.4g}]")
 
     out.mkdir(parents=True, exist_ok=True)
-    plots = _write_plots(bench, result, out, 1)
-    plot_residuals(diag, out / "diagnosis_residuals.png")
+    plots = write_fit_plots(result, bench, out, 1)
+    plot_diagnosis_residuals(diag, out / "diagnosis_residuals.png")
     plots.append("diagnosis_residuals.png")
     summary = result.to_dict()
     summary["source"] = str(path)

@@ -26,11 +26,11 @@ import pandas as pd
 import pytest
 
 from pamid._diagnose._api import diagnose
-from pamid._diagnose._report import format_report
 from pamid._diagnose._static import ROW_COUNTER_WHY, row_counters
 from pamid._effects._definitions import DECAY_EFFECTS, STATIC_EFFECTS
 from pamid._effects._inject import InjectedDrift, InjectedTemperature
 from pamid._virtual._isometric import virtual_lab_file
+from pamid.report import diagnosis_report
 
 SEED = 5
 PROTOCOLS = {
@@ -220,7 +220,7 @@ def test_a_row_number_column_is_not_offered_as_a_covariate(tmp_path):
     assert d.covariates_not_used == [{"column": "src_row", "why": ROW_COUNTER_WHY}]
     assert "src_row" not in d.residual_before["covariates"]
     assert d.to_dict()["covariates_not_used"][0]["column"] == "src_row"
-    assert "Not used as a covariate: src_row" in format_report(d)
+    assert "Not used as a covariate: src_row" in diagnosis_report(d)
     assert d.selected == []
 
 

@@ -278,14 +278,16 @@ def test_to_dict_writes_every_number_as_the_element_wise_conversion(small_bench)
             assert all(type(v) in (float, type(None)) for v in entry["ci95"] + [entry["se"]])
 
 
-def test_to_json_writes_the_text_json_dumps_writes(small_bench):
-    """``FitResult.to_json`` (what ``pamid fit --json`` prints) is ``json.dumps`` of
+def test_fit_json_writes_the_text_json_dumps_writes(small_bench):
+    """``pamid.report.fit_json`` (what ``pamid fit --json`` prints) is ``json.dumps`` of
     ``to_dict`` with the command's own keys, character for character: NaN, ±inf, names
     with quotes, '%' and non-ASCII letters, messages, both optional interval kinds."""
     import dataclasses
     import json
 
     import jax
+
+    from pamid.report import fit_json
 
     fit = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile", "bootstrap"),
                                   key=jax.random.key(0), n_bootstrap=20)
@@ -295,8 +297,8 @@ def test_to_json_writes_the_text_json_dumps_writes(small_bench):
     messages = tuple("why 100 %" if i % 2 else None for i in range(fit.n_muscles))
     fit = dataclasses.replace(fit, theta=theta, muscles=names, messages=messages)
     extra = {"source": "a.csv", "n_censored_dropped": 2, "seconds": 0.5, "plots": ["f.png"]}
-    assert fit.to_json(**extra) == json.dumps({**fit.to_dict(), **extra})
-    assert json.loads(fit.to_json())["muscles"][0]["params"]["a2"]["value"] is None
+    assert fit_json(fit, **extra) == json.dumps({**fit.to_dict(), **extra})
+    assert json.loads(fit_json(fit))["muscles"][0]["params"]["a2"]["value"] is None
 
 
 @pytest.mark.parametrize(("rows", "why"), [

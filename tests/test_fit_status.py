@@ -20,6 +20,7 @@ from pamid._fit._batch import pack
 from pamid._fit._least_squares import fit_lanes, statistics
 from pamid._fit._rank import RANK_RTOL, null_direction, undetermined
 from pamid._fit._spec import SAROSI
+from pamid.report import fit_json
 
 PRESSURES_BAR = np.linspace(1.0, 6.0, 26)
 
@@ -162,7 +163,7 @@ def test_the_rank_criterion_names_the_constant_the_data_do_not_see():
 
 
 def test_json_has_status_and_message(result):
-    doc = json.loads(result.to_json())
+    doc = json.loads(fit_json(result))
     by_name = {m["muscle"]: m for m in doc["muscles"]}
     assert by_name["well designed"]["status"] == "converged"
     assert by_name["well designed"]["message"] is None
@@ -216,3 +217,25 @@ def test_parse_bounds_keeps_the_models_own_elsewhere():
     assert parse_bounds(None, SAROSI) is None
     with pytest.raises(ValueError, match="sarosi has no constant 'b1'"):
         parse_bounds("b1=0:1", SAROSI)
+
+
+def test_profile_intervals_end_at_the_bounds(small_bench):
+    """A profile end past its constant's bound is the bound (a value the physics forbids is
+    no possible value of the constant); the other end and the other constants do not move."""
+    data = small_bench.data
+    free = fit_least_squares(data, intervals=("wald", "profile"))
+    a1, (lo, hi) = free.theta[0, 0], free.ci95_profile[0, 0]
+    assert lo < a1 < hi
+    cap = a1 + 0.5 * (hi - a1)  # above the estimate, below the profile's upper end
+    upper = np.full(6, np.inf)
+    upper[0] = cap
+    bounded = fit_least_squares(data, intervals=("wald", "profile"),
+                                bounds=(np.full(6, -np.inf), upper))
+    # muscle 0 is inside the bound: the same fit, its upper profile end cut at the bound
+    np.testing.assert_allclose(bounded.theta[0], free.theta[0], rtol=1e-9)
+    assert bounded.ci95_profile[0, 0, 1] == cap
+    np.testing.assert_allclose(bounded.ci95_profile[0, 0, 0], lo, rtol=1e-9)
+    np.testing.assert_allclose(bounded.ci95_profile[0, 1:], free.ci95_profile[0, 1:], rtol=1e-9)
+    # no muscle's interval reaches past the bound, whether its fit ended on it or not
+    ends = bounded.ci95_profile[:, 0, :]
+    assert np.all(ends[np.isfinite(ends)] <= cap)

@@ -91,7 +91,8 @@ def test_constants_linear_in_length_are_found(linear_constants, table_3_1):
     # intervals misses 5 % of draws, and a1, a4 and a5 are nearly collinear with 4
     # contraction levels, so they miss together (seed 4 of this file put all three 2.6–2.9
     # standard errors off; seed 5, a2's interval across muscles by 0.1 % of its width after
-    # the starts changed): at most 3 misses, and none off by more than 1.8 half-widths of its interval.
+    # the starts changed): at most 3 misses, and none off by more than 1.8 half-widths of
+    # its interval.
     g_ref = l0_feature(st.l0_ref_mm, "linear", L0_MID)  # l0_ref relative to L0_MID
     misses = []
     for j, dep in enumerate(st.dependence):

@@ -13,7 +13,7 @@ import pytest
 import pamid
 from pamid._data._curves import find_curves
 from pamid._fit._spec import SAROSI
-from pamid._plot import (
+from pamid._report._plot import (
     MAX_LINES,
     MAX_LISTED,
     MAX_POINTS,
@@ -287,8 +287,8 @@ def test_real_isometric_file(tmp_path):
 
 def test_diagnosis_plots_of_a_big_table_are_subsampled_per_curve(tmp_path):
     from pamid._diagnose._api import Diagnosis
-    from pamid._diagnose._report import plot_residuals as plot_diagnosis
-    from pamid._diagnose._report import plot_time_order
+    from pamid.report import plot_diagnosis_residuals as plot_diagnosis
+    from pamid.report import plot_diagnosis_time_order as plot_time_order
 
     table = virtual_lab_file(jax.random.key(4), "sweeps_noisy", 100_000, n_muscles=2)
     table["group"] = table["muscle"]

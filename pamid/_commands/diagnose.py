@@ -61,8 +61,12 @@ def register(subparsers) -> None:
 
 def cmd_diagnose(args) -> int:
     from .._diagnose._api import diagnose
-    from .._diagnose._report import format_report, plot_residuals, plot_time_order
     from .._io import final_place, write_text_atomic
+    from .._report._diagnosis import (
+        diagnosis_report,
+        plot_diagnosis_residuals,
+        plot_diagnosis_time_order,
+    )
 
     if args.folds < 2:
         raise ValueError("--folds must be at least 2")
@@ -84,14 +88,14 @@ def cmd_diagnose(args) -> int:
     if args.out:
         out = Path(args.out)
         write_text_atomic(out / "diagnosis.json", json.dumps(out_json, indent=2) + "\n")
-        write_text_atomic(out / "report.txt", format_report(d) + "\n")
-        plot_residuals(d, out / "residuals_before_after.png")
-        plot_time_order(d, out / "residual_time_order.png")
+        write_text_atomic(out / "report.txt", diagnosis_report(d) + "\n")
+        plot_diagnosis_residuals(d, out / "residuals_before_after.png")
+        plot_diagnosis_time_order(d, out / "residual_time_order.png")
         progress(f"wrote diagnosis.json, report.txt, residuals_before_after.png, "
                  f"residual_time_order.png to {final_place(out)}/")
     if args.json:
         print(json.dumps(out_json))
     else:
-        print(format_report(d))
+        print(diagnosis_report(d))
     progress("done")
     return 0

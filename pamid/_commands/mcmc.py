@@ -78,6 +78,7 @@ def run_mcmc_fit(args, bench, bounds=None) -> tuple[dict, int]:
     import jax
 
     from .._io import final_place, write_text_atomic
+    from .._report._mcmc import save_netcdf, write_mcmc_plots
     from .._sampling._mcmc import fit_mcmc
 
     quiet = bool(getattr(args, "json", False))
@@ -113,8 +114,8 @@ def run_mcmc_fit(args, bench, bounds=None) -> tuple[dict, int]:
         n_files = min(getattr(args, "max_plots", 6), result.n_muscles)
         stage(f"writing NetCDF and plots for {n_files} of {result.n_muscles} muscle(s) "
                f"to {final_place(out)}", quiet)
-        payload["netcdf"] = result.save_netcdf(out, muscles=range(n_files))
-        payload["plots"] = _write_plots(result, bench, out, n_files)
+        payload["netcdf"] = save_netcdf(result, out, muscles=range(n_files))
+        payload["plots"] = write_mcmc_plots(result, bench, out, n_files)
     payload["seconds"] = round(time.perf_counter() - t0, 3)
     if getattr(args, "out", None):
         write_text_atomic(Path(args.out) / "fit.json", json.dumps(payload, indent=2) + "\n")
@@ -124,22 +125,3 @@ def run_mcmc_fit(args, bench, bounds=None) -> tuple[dict, int]:
             bad = [m for m, ok in zip(result.muscles, result.converged) if not ok]
             print(f"WARNING: {len(bad)} muscle(s) did not converge: {bad[:10]}")
     return payload, 0 if result.converged.all() else 1
-
-
-def _write_plots(result, bench, out: Path, n_files: int) -> list[str]:
-    from .._sampling import _arviz
-
-    written = []
-    for i in range(n_files):
-        stem = _arviz.muscle_file_stem(result, i)
-        label = result.muscles[i] if result.muscles[i] is not None else Path(bench.path).name
-        src = result.spec.source
-        for kind, plot, title in (
-            ("trace", _arviz.plot_trace, f"MCMC traces — {src} — {label}"),
-            ("pair", _arviz.plot_pair, f"Posterior of the constants — {src} — {label}"),
-            ("predictive", _arviz.plot_predictive, f"Posterior predictive — {src} — {label}"),
-        ):
-            name = f"mcmc_{kind}_{stem}.png"
-            plot(result, i, out / name, title)
-            written.append(name)
-    return written

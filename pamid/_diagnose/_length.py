@@ -39,7 +39,7 @@ from .._data._bench import BenchData
 from .._errors import BenchDataError
 from .._fit._api import fit_least_squares
 from .._fit._batch import FitData
-from .._fit._compare import FoldPlan, predict_lanes, fit_with_folds, fold_plan
+from .._fit._compare import FoldPlan, fit_with_folds, fold_plan, predict_lanes
 from .._fit._spec import ModelSpec, get_model
 
 #: Options whose CV RMSE is within this fraction of the lowest are tied; of tied options the
@@ -140,6 +140,12 @@ class LengthStudy:
 
     def option(self, name: str) -> LengthOption:
         return next(o for o in self.options if o.name == name)
+
+    def constants_at(self, l0_mm) -> dict[str, np.ndarray]:
+        """The constants of the smooth model at the resting lengths ``l0_mm`` (mm), by
+        name: value + slope·g(l0) in the chosen form (:func:`l0_feature`)."""
+        g = l0_feature(l0_mm, self.form, self.l0_ref_mm)
+        return {dep.name: dep.value + dep.slope * g for dep in self.dependence}
 
     def to_dict(self) -> dict:
         return _json(dataclasses.asdict(self) | {

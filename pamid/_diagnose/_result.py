@@ -27,7 +27,10 @@ UNEXPLAINED_RHO1 = 0.1
 
 @dataclasses.dataclass
 class Diagnosis:
-    """What :func:`diagnose` found. :meth:`to_dict` is the ``--json`` object."""
+    """What :func:`diagnose` found: it holds results only. :meth:`to_dict` is their plain-data
+    view (the ``--json`` object); the text report and the residual figures are written by
+    :mod:`pamid.report` (``diagnosis_report``, ``plot_diagnosis_residuals``,
+    ``plot_diagnosis_time_order``)."""
 
     path: str
     kind: str
@@ -63,6 +66,8 @@ class Diagnosis:
             self.rows_total = self.n
 
     def to_dict(self) -> dict:
+        """The diagnosis as plain data (JSON-ready: lists, floats, None for NaN): the
+        ``pamid diagnose --json`` object."""
         return json_ready({
             "file": self.path, "kind": self.kind, "model": self.model, "n": self.n,
             "rows_used": self.rows_used, "rows_total": self.rows_total,
@@ -77,28 +82,6 @@ class Diagnosis:
             "residual_after": self.residual_after, "unexplained": self.unexplained,
             "covariates_not_used": self.covariates_not_used,
         })
-
-    def report(self) -> str:
-        """The diagnosis as ``pamid diagnose`` prints it: what the model missed, what was
-        added, before and after."""
-        from ._report import format_report
-
-        return format_report(self)
-
-    def plot_residuals(self, path, max_panels: int = 9):
-        """PNG at ``path``: the residual against each covariate (the ``max_panels`` most
-        significant), before and after the selected effects; written atomically. Returns
-        the figure."""
-        from ._report import plot_residuals
-
-        return plot_residuals(self, path, max_panels=max_panels)
-
-    def plot_time_order(self, path):
-        """PNG at ``path``: the residual in time order, before and after the selected
-        effects; written atomically. Returns the figure."""
-        from ._report import plot_time_order
-
-        return plot_time_order(self, path)
 
 
 def _candidate_rows(rows: list[dict]) -> list[dict]:

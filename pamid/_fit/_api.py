@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import jax
 import numpy as np
@@ -12,7 +11,7 @@ import pandas as pd
 from .._data._bench import BenchData
 from . import _correlated, _intervals
 from ._batch import FitData, pack_rows
-from ._least_squares import fit_lanes, statistics
+from ._least_squares import _bounds_arrays, fit_lanes, statistics
 from ._spec import ModelSpec, get_model
 
 INTERVAL_KINDS = ("wald", "profile", "bootstrap", "cluster", "hac")
@@ -30,6 +29,9 @@ class FitResult:
     constant that ran off, then held on its bound), "nonfinite", "too_few_rows"; ``messages``
     says why in words, naming the constants at fault. ``converged`` is True for "converged"
     and "at_bound" only. Constants are reported for every muscle, never dropped.
+
+    It holds results only: :meth:`to_dict` is their plain-data view; JSON text, figures and
+    files are written by :mod:`pamid.report`.
     """
 
     model: str
@@ -86,87 +88,74 @@ class FitResult:
         return self.spec.make(self.theta[i])
 
     def to_dict(self) -> dict:
-        """The JSON shape of ``pamid fit --json``."""
-        columns, optional = self._json_columns(text=False)
-        muscles = [self._muscle_entry(iter(values), optional) for values in zip(*columns)]
-        return {**self._json_head(), "muscles": muscles}
+        """The fit as plain data (lists, floats, None for NaN): the JSON shape of ``pamid
+        fit --json``. The result holds results only; :mod:`pamid.report` writes them
+        (``fit_json`` this same document as text, ``plot_fit`` and ``plot_residuals`` the
+        figures)."""
+        columns, optional = fit_columns(self)
+        plain = [_PLAIN[kind](values) for kind, values in columns]
+        muscles = [muscle_entry(self, iter(values), optional) for values in zip(*plain)]
+        return {**json_head(self), "muscles": muscles}
 
-    def to_json(self, **extra) -> str:
-        """``json.dumps({**self.to_dict(), **extra})``, the same text, written without the
-        dictionaries: every muscle's entry is one ``%`` of a template that
-        :meth:`_muscle_entry` lays out (3× faster: benchmarks/README.md, "Figures that
-        used to live in docstrings", (i))."""
-        columns, optional = self._json_columns(text=True)
-        marks = [f"<<pamid-json-{k}>>" for k in range(len(columns))]
-        template = json.dumps(self._muscle_entry(iter(marks), optional)).replace("%", "%%")
-        at = [template.find(f'"{mark}"') for mark in marks]
-        if not all(a >= 0 for a in at) or at != sorted(at) or not all(
-                template.count(f'"{mark}"') == 1 for mark in marks):
-            return json.dumps({**self.to_dict(), **extra})  # a value that is no mark's text
-        for mark in marks:
-            template = template.replace(f'"{mark}"', "%s")
-        muscles = "[" + ", ".join(map(template.__mod__, zip(*columns))) + "]"
-        head = json.dumps({**self._json_head(), "muscles": "<<pamid-json-muscles>>", **extra})
-        return head.replace('"<<pamid-json-muscles>>"', muscles, 1)
 
-    def _json_head(self) -> dict:
-        return {
-            "model": self.model,
-            "equation": self.spec.source,
-            "units": dict(self.spec.units),
-            "solver": self.solver,
-            "interval": "wald-t",
-            "interval_shown": self.interval_shown,
-            "interval_groups": dict(self.interval_groups or {}),
-        }
+def json_head(result: FitResult) -> dict:
+    """The fit's JSON document without its muscles: model, equation, units, solver,
+    intervals."""
+    return {
+        "model": result.model,
+        "equation": result.spec.source,
+        "units": dict(result.spec.units),
+        "solver": result.solver,
+        "interval": "wald-t",
+        "interval_shown": result.interval_shown,
+        "interval_groups": dict(result.interval_groups or {}),
+    }
 
-    def _json_columns(self, text: bool) -> tuple[list, tuple[str, ...]]:
-        """The muscles' values as columns (one list over the muscles per value, in the
-        order :meth:`_muscle_entry` takes them): Python values (floats by
-        :func:`_json_values`), or with ``text`` their JSON text; and the optional interval
-        kinds present."""
-        floats = _json_floats if text else _json_values
-        texts = _json_texts if text else list
-        optional = [(key, arr) for key, arr in (("ci95_profile", self.ci95_profile),
-                                                ("ci95_bootstrap", self.ci95_bootstrap),
-                                                ("ci95_cluster", self.ci95_cluster),
-                                                ("ci95_hac", self.ci95_hac))
-                    if arr is not None]
-        n = self.n.tolist()
-        converged = np.asarray(self.converged, dtype=bool).tolist()
-        messages = [self.message(i) for i in range(len(self.muscles))]
-        status = [self.status_of(i) for i in range(len(self.muscles))]
-        m = len(self.muscles)
-        lag1 = np.full(m, np.nan) if self.residual_lag1 is None else self.residual_lag1
-        notes = [self.interval_notes[i] if i < len(self.interval_notes) else None
-                 for i in range(m)]
-        if text:
-            n = [str(int(v)) for v in n]
-            converged = ["true" if c else "false" for c in converged]
-        columns = [texts(list(self.muscles)), n, floats(self.rmse_N), floats(self.r), converged,
-                   texts(status), texts(messages), floats(lag1), texts(notes)]
-        for j in range(len(self.param_names)):
-            columns += [floats(self.theta[:, j]), floats(self.ci95[:, j, 0]),
-                        floats(self.ci95[:, j, 1]), floats(self.se[:, j])]
-            for _, arr in optional:
-                columns += [floats(arr[:, j, 0]), floats(arr[:, j, 1])]
-        return columns, tuple(key for key, _ in optional)
 
-    def _muscle_entry(self, values, optional: tuple[str, ...]) -> dict:
-        """One muscle's entry of the JSON document, its values taken from the iterator
-        ``values`` in order (the order of :meth:`_json_columns`)."""
-        head = {"muscle": next(values), "n": next(values), "rmse_N": next(values),
-                "r": next(values), "converged": next(values), "status": next(values),
-                "message": next(values), "residual_lag1": next(values),
-                "interval_note": next(values)}
-        params = {}
-        for name in self.param_names:
-            entry = {"value": next(values), "ci95": [next(values), next(values)],
-                     "se": next(values), "unit": self.param_units[name]}
-            for key in optional:
-                entry[key] = [next(values), next(values)]
-            params[name] = entry
-        return {**head, "params": params}
+def fit_columns(result: FitResult) -> tuple[list[tuple[str, object]], tuple[str, ...]]:
+    """The muscles' values as columns, in the order :func:`muscle_entry` takes them: one
+    ``(kind, values)`` per value of a muscle's entry, ``values`` over the muscles and
+    ``kind`` one of "text" (a list of str or None), "int", "bool" (lists) and "float" (an
+    array; NaN and ±inf are null in JSON); and the optional interval kinds present.
+    :meth:`FitResult.to_dict` makes them plain values, ``pamid.report.fit_json`` JSON text."""
+    optional = [(key, arr) for key, arr in (("ci95_profile", result.ci95_profile),
+                                            ("ci95_bootstrap", result.ci95_bootstrap),
+                                            ("ci95_cluster", result.ci95_cluster),
+                                            ("ci95_hac", result.ci95_hac))
+                if arr is not None]
+    m = len(result.muscles)
+    lag1 = np.full(m, np.nan) if result.residual_lag1 is None else result.residual_lag1
+    notes = [result.interval_notes[i] if i < len(result.interval_notes) else None
+             for i in range(m)]
+    columns = [("text", list(result.muscles)), ("int", result.n.tolist()),
+               ("float", result.rmse_N), ("float", result.r),
+               ("bool", np.asarray(result.converged, dtype=bool).tolist()),
+               ("text", [result.status_of(i) for i in range(m)]),
+               ("text", [result.message(i) for i in range(m)]),
+               ("float", lag1), ("text", notes)]
+    for j in range(len(result.param_names)):
+        columns += [("float", result.theta[:, j]), ("float", result.ci95[:, j, 0]),
+                    ("float", result.ci95[:, j, 1]), ("float", result.se[:, j])]
+        for _, arr in optional:
+            columns += [("float", arr[:, j, 0]), ("float", arr[:, j, 1])]
+    return columns, tuple(key for key, _ in optional)
+
+
+def muscle_entry(result: FitResult, values, optional: tuple[str, ...]) -> dict:
+    """One muscle's entry of the JSON document, its values taken from the iterator
+    ``values`` in order (the order of :func:`fit_columns`)."""
+    head = {"muscle": next(values), "n": next(values), "rmse_N": next(values),
+            "r": next(values), "converged": next(values), "status": next(values),
+            "message": next(values), "residual_lag1": next(values),
+            "interval_note": next(values)}
+    params = {}
+    for name in result.param_names:
+        entry = {"value": next(values), "ci95": [next(values), next(values)],
+                 "se": next(values), "unit": result.param_units[name]}
+        for key in optional:
+            entry[key] = [next(values), next(values)]
+        params[name] = entry
+    return {**head, "params": params}
 
 
 #: The result codes of a fit, per muscle (``FitResult.status``); ``converged`` is True for
@@ -305,21 +294,8 @@ def _json_values(a) -> list:
     return np.where(np.isfinite(a), a, None).tolist()
 
 
-def _json_floats(a) -> list[str]:
-    """A 1-D array as the JSON text of each element, as ``json.dumps`` writes
-    :func:`_json_values` of it: ``float.__repr__``, null for NaN and ±inf."""
-    a = np.asarray(a, dtype=np.float64)
-    texts = list(map(float.__repr__, a.tolist()))
-    for i in np.flatnonzero(~np.isfinite(a)).tolist():
-        texts[i] = "null"
-    return texts
-
-
-def _json_texts(values: list) -> list[str]:
-    """The JSON text of each of ``values``, as ``json.dumps`` writes it."""
-    ascii_text = json.encoder.encode_basestring_ascii  # what json.dumps uses for a str
-    return ["null" if v is None else ascii_text(v) if type(v) is str else json.dumps(v)
-            for v in values]
+#: Plain values of each kind of :func:`fit_columns`.
+_PLAIN = {"text": list, "int": list, "bool": list, "float": _json_values}
 
 
 def _num(x):
@@ -425,7 +401,8 @@ def fit_least_squares(
     ci_profile = profile_ok = None
     if "profile" in intervals:
         plo, phi, profile_ok = _intervals.profile(spec, data, theta, se, s2, sse, dof, level,
-                                                  jtj_inv=jtj_inv)
+                                                  jtj_inv=jtj_inv,
+                                                  bounds=_bounds_arrays(spec, bounds))
         ci_profile = np.stack([plo, phi], axis=-1)
     ci_boot = boot_ok = None
     if "bootstrap" in intervals:

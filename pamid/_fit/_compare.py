@@ -160,8 +160,10 @@ class ModelComparison:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Comparison:
-    """Models ranked per muscle; see the module text. ``to_dict()`` is the JSON of
-    ``pamid compare --json``."""
+    """Models ranked per muscle; see the module text. It holds results only: ``to_dict()``
+    is their plain-data view (the JSON of ``pamid compare --json``); the table and the
+    figures are written by :mod:`pamid.report` (``comparison_table``, ``plot_comparison``,
+    ``plot_cv_rmse``)."""
 
     muscles: tuple[str | None, ...]
     models: tuple[ModelComparison, ...]
@@ -191,6 +193,9 @@ class Comparison:
         return mc.spec.name if bool(mc.fit.converged[i]) and np.isfinite(score) else None
 
     def to_dict(self) -> dict:
+        """The comparison as plain data (lists, floats, None for NaN): per muscle the models
+        best first, with RMSE, CV RMSE and max error [N], BIC, ranks, status and constants;
+        the ``pamid compare --json`` object."""
         out = []
         for i, muscle in enumerate(self.muscles):
             order = self.ranking(i)

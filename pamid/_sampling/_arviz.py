@@ -1,4 +1,4 @@
-"""ArviZ 1.x output of a posterior: DataTree, summary, NetCDF, and figures.
+"""ArviZ 1.x view of a posterior: DataTree, summary, diagnostics, and reading NetCDF back.
 
 The DataTree of one muscle is built with :func:`arviz.from_dict`, not ``from_emcee``, for
 both samplers: the stacked sampler is not an emcee sampler, and the groups beyond the
@@ -7,16 +7,15 @@ computed from the kept draws after burn-in anyway. Walkers are ArviZ's chains, a
 ``from_emcee``; the tests check that the posterior equals ``from_emcee``'s after burn-in.
 
 NetCDF: a DataTree with groups needs a NetCDF-4 engine (h5netcdf or netCDF4). Where
-neither is installed, :func:`save_netcdf` writes one NetCDF-3 file per group into a folder
-(SciPy's writer; list-valued attributes stored as JSON text) and warns;
-:func:`load_inference_data` reads either form.
+neither is installed, ``pamid.report.save_netcdf`` (:mod:`pamid._report._mcmc`) writes one
+NetCDF-3 file per group into a folder (SciPy's writer; list-valued attributes stored as JSON
+text, :func:`encode_attrs`) and warns; :func:`load_inference_data` reads either form. The
+figures of a posterior are :mod:`pamid._report._mcmc`'s.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import warnings
 from pathlib import Path
 
 import jax
@@ -25,7 +24,6 @@ import numpy as np
 from scipy import fft as _fft
 from scipy import special as _special
 
-from .._io import save_figure_atomic, write_atomic
 from . import _posterior
 
 GROUPS = ("posterior", "sample_stats", "log_likelihood", "posterior_predictive",
@@ -33,7 +31,7 @@ GROUPS = ("posterior", "sample_stats", "log_likelihood", "posterior_predictive",
 _JSON_PREFIX = "json:"
 
 
-def _input_names(spec) -> list[str]:
+def input_names(spec) -> list[str]:
     """Names of the model's inputs in its own units: ("pressure_bar", "contraction_pct")."""
     names = []
     for col in spec.columns:
@@ -44,7 +42,8 @@ def _input_names(spec) -> list[str]:
     return names
 
 
-def _observed(result, i):
+def observed(result, i):
+    """Muscle ``i``'s rows with a positive weight: inputs, force, weight and curve."""
     w = np.asarray(result.data.w[i])
     keep = w > 0
     x = tuple(np.asarray(xj[i])[keep] for xj in result.data.x)
@@ -59,7 +58,7 @@ def to_inference_data(result, i: int = 0, *, predictive: bool = True):
     p = len(result.param_names)
     draws = result.samples[i]  # (W, D, p + 1)
     theta, sigma = draws[..., :p], draws[..., p]
-    x, y, w, curve = _observed(result, i)
+    x, y, w, curve = observed(result, i)
     n_obs = len(y)
 
     posterior = {name: theta[..., j] for j, name in enumerate(result.param_names)}
@@ -68,13 +67,13 @@ def to_inference_data(result, i: int = 0, *, predictive: bool = True):
         "posterior": posterior,
         "sample_stats": {"lp": result.log_prob[i]},
         "observed_data": {"force_N": y},
-        "constant_data": {**dict(zip(_input_names(spec), x)), "weight": w, "curve": curve},
+        "constant_data": {**dict(zip(input_names(spec), x)), "weight": w, "curve": curve},
     }
     if predictive:
         ll, ppc = _predictive(result, i, theta, sigma, x, y)
         data["log_likelihood"] = {"force_N": ll * w}  # a weight is a count of repeated rows
         data["posterior_predictive"] = {"force_N": ppc}
-    obs_vars = ["force_N", "weight", "curve", *_input_names(spec)]
+    obs_vars = ["force_N", "weight", "curve", *input_names(spec)]
     muscle = result.muscles[i]
     attrs = {
         "model": result.model,
@@ -285,64 +284,14 @@ def eti(x, prob: float = 0.95) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------
-# NetCDF.
+# NetCDF: the attributes of the NetCDF-3 fallback, and reading what was written
+# (the writing is pamid._report._mcmc's).
 
 
-def netcdf_engine() -> str | None:
-    """The NetCDF-4 engine xarray can use here, or None."""
-    for module, engine in (("h5netcdf", "h5netcdf"), ("netCDF4", "netcdf4")):
-        if importlib.util.find_spec(module) is not None:
-            return engine
-    return None
-
-
-def _safe_name(name) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name))
-
-
-def muscle_file_stem(result, i: int) -> str:
-    m = result.muscles[i]
-    if m is None:
-        return "muscle" if result.n_muscles == 1 else f"muscle{i}"
-    return _safe_name(m)
-
-
-def save_netcdf(result, directory, muscles=None) -> list[str]:
-    """Write ``mcmc_<muscle>.nc`` per muscle (atomically); returns the names written."""
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    written = []
-    for i in range(result.n_muscles) if muscles is None else muscles:
-        dt = to_inference_data(result, i)
-        written.append(write_datatree(dt, directory / f"mcmc_{muscle_file_stem(result, i)}.nc"))
-    return written
-
-
-def write_datatree(dt, path) -> str:
-    """Write a DataTree as NetCDF-4 to ``path``, or, without a NetCDF-4 engine, as one
-    NetCDF-3 file per group in the folder ``path`` + ``3`` (with a warning). Returns the
-    name written."""
-    path = Path(path)
-    engine = netcdf_engine()
-    if engine is not None:
-        write_atomic(path, lambda tmp: dt.to_netcdf(tmp, engine=engine))
-        return path.name
-    folder = path.with_suffix(path.suffix + "3")
-    warnings.warn(f"no NetCDF-4 engine (install h5netcdf): wrote {folder.name}/, one "
-                  "NetCDF-3 file per group; read it with pamid's load_inference_data",
-                  stacklevel=3)
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, node in dt.children.items():
-        ds = node.to_dataset()
-        ds.attrs = _encode_attrs(ds.attrs)
-        for v in ds.variables.values():
-            v.attrs = _encode_attrs(v.attrs)
-        write_atomic(folder / f"{name}.nc",
-                     lambda tmp, ds=ds: ds.to_netcdf(tmp, engine="scipy", format="NETCDF3_64BIT"))
-    return folder.name
-
-
-def _encode_attrs(attrs):
+def encode_attrs(attrs) -> dict:
+    """Attributes as a NetCDF-3 file can hold them: str, int and float kept, anything else
+    (lists, booleans, arrays) as JSON text behind a prefix that :func:`load_inference_data`
+    reads back."""
     out = {}
     for k, v in attrs.items():
         if isinstance(v, (str, int, float)) and not isinstance(v, bool):
@@ -358,8 +307,8 @@ def _decode_attrs(attrs):
 
 
 def load_inference_data(path):
-    """Read what :func:`save_netcdf` wrote: a NetCDF-4 file, or a folder of NetCDF-3
-    files (one per group)."""
+    """Read what ``pamid.report.save_netcdf`` wrote: a NetCDF-4 file, or a folder of
+    NetCDF-3 files (one per group)."""
     import arviz as az
     import xarray as xr
 
@@ -380,49 +329,7 @@ def load_inference_data(path):
 
 
 # --------------------------------------------------------------------------------------
-# Figures.
-
-
-def _finish(fig, path, dpi=100):
-    """Save and close the figure if ``path`` is given; else return it (for notebooks)."""
-    import matplotlib.pyplot as plt
-
-    if path is None:
-        return fig
-    save_figure_atomic(fig, path, dpi=dpi)
-    plt.close(fig)
-    return None
-
-
-def plot_trace(result, i=0, path=None, title: str | None = None):
-    """Trace and marginal density of every constant and σ (walkers as chains). Saved to
-    ``path`` if given, else the matplotlib figure is returned."""
-    import arviz as az
-
-    dt = to_inference_data(result, i, predictive=False)
-    pc = az.plot_trace_dist(dt, backend="matplotlib", compact=True, combined=True)
-    fig = pc.get_viz("figure")
-    fig.suptitle(title or f"MCMC traces — {result.spec.source}", y=1.0)
-    return _finish(fig, path)
-
-
-def plot_pair(result, i=0, path=None, title: str | None = None):
-    """Pair plot of the constants (posterior draws, with marginals); saved or returned."""
-    import arviz as az
-
-    dt = to_inference_data(result, i, predictive=False)
-    size = 1.7 * len(result.param_names) + 1.0
-    pm = az.plot_pair(dt, var_names=list(result.param_names), backend="matplotlib",
-                      figure_kwargs={"figsize": (size, size)},
-                      visuals={"scatter": {"alpha": 0.15, "s": 2}})
-    fig = pm.get_viz("figure")
-    fig.suptitle(title or f"Posterior of the constants — {result.spec.source}")
-    for ax in fig.axes:  # long tick labels of neighbouring panels must not collide
-        ax.tick_params(labelsize=7)
-        ax.tick_params(axis="x", labelrotation=30)
-    if not fig.get_constrained_layout():
-        fig.subplots_adjust(wspace=0.45, hspace=0.45)
-    return _finish(fig, path)
+# The posterior predictive along a grid (drawn by pamid._report._mcmc.plot_predictive).
 
 
 def predictive_bands(result, i, p_level, contraction, n_draws: int = 2000, prob=0.95,
@@ -452,47 +359,3 @@ def predictive_bands(result, i, p_level, contraction, n_draws: int = 2000, prob=
     q = [(1 - prob) / 2, (1 + prob) / 2]
     return (mu.mean(axis=0), tuple(np.quantile(mu, q, axis=0)),
             tuple(np.quantile(pred, q, axis=0)))
-
-
-def plot_predictive(result, i=0, path=None, title: str | None = None):
-    """Data against the posterior, per pressure level. Top: data, posterior-mean force and
-    the 95% posterior-predictive band. Bottom, relative to the posterior mean (where the
-    bands are visible at all): residuals, the 95% predictive band (dashed) and the 95%
-    credible band of the model force (filled). Saved to ``path``, or returned."""
-    import matplotlib.pyplot as plt
-
-    spec = result.spec
-    x, y, _, _ = _observed(result, i)
-    names = _input_names(spec)
-    p_in, k_in = x[0], x[1]
-    levels = np.unique(np.round(p_in, 6))
-    colors = plt.cm.viridis(np.linspace(0.0, 0.9, max(len(levels), 1)))
-    mean_at_data = np.asarray(spec.predict(jnp.asarray(result.theta_mean[i]),
-                                           tuple(jnp.asarray(a) for a in x)))
-    p_unit = names[0].split("_", 1)[1] if "_" in names[0] else ""
-    fig, (ax, axr) = plt.subplots(2, 1, figsize=(7.5, 8.0), sharex=True,
-                                  gridspec_kw={"height_ratios": [2.2, 1.6]})
-    for level, color in zip(levels, colors):
-        sel = np.round(p_in, 6) == level
-        grid = np.linspace(k_in[sel].min(), k_in[sel].max(), 120)
-        mean, band, pband = predictive_bands(result, i, level, grid)
-        ax.fill_between(grid, *pband, color=color, alpha=0.25, lw=0)
-        ax.plot(grid, mean, "-", color=color, lw=1.2, label=f"{level:.3g} {p_unit}")
-        ax.plot(k_in[sel], y[sel], "o", ms=3.5, mfc="none", color=color)
-        for edge in pband:
-            axr.plot(grid, edge - mean, "--", color=color, lw=0.9)
-        axr.fill_between(grid, band[0] - mean, band[1] - mean, color=color, alpha=0.5, lw=0)
-        axr.plot(k_in[sel], (y - mean_at_data)[sel], "o", ms=3, mfc="none", color=color)
-    axr.axhline(0.0, color="k", lw=0.8)
-    ax.set_ylabel("force F [N]")
-    ax.set_title(title or f"Posterior predictive — {spec.source}")
-    ax.legend(title=f"{names[0].split('_')[0]} (band: 95% predictive)", fontsize=7,
-              title_fontsize=8, loc="upper right", ncol=2 if len(levels) > 8 else 1)
-    ax.grid(alpha=0.3)
-    axr.set_xlabel(names[1].replace("_pct", " [%]").replace("_mm", " [mm]"))
-    axr.set_ylabel("data − posterior mean [N]")
-    axr.set_title("dashed: 95% predictive band (noise included); band: 95% credible band "
-                  "of the model force", fontsize=8)
-    axr.grid(alpha=0.3)
-    fig.tight_layout()
-    return _finish(fig, path, dpi=110)

@@ -230,6 +230,11 @@ class McmcResult:
     False for a muscle whose kept chain spans fewer than ``n_tau`` autocorrelation times
     or whose worst R-hat exceeds ``R_HAT_MAX``. ``ls`` is the least-squares fit the walkers
     started from.
+
+    It holds results only: :meth:`to_dict` is their plain-data view, :meth:`summary` and
+    :meth:`to_inference_data` their ArviZ views; NetCDF files and figures are written by
+    :mod:`pamid.report` (``save_netcdf``, ``plot_trace``, ``plot_pair``,
+    ``plot_predictive``).
     """
 
     model: str
@@ -295,9 +300,10 @@ class McmcResult:
         return self.spec.make(self.theta_mean[i])
 
     def to_dict(self) -> dict:
-        """The JSON shape of ``pamid fit --method mcmc --json``: that of the least-squares
-        fit, each constant with ``hdi95``, ``r_hat``, ``ess_bulk`` and ``ess_tail`` too,
-        and its least-squares value and Wald interval under ``"ls"``."""
+        """The posterior as plain data (lists, floats, None for NaN): the JSON shape of
+        ``pamid fit --method mcmc --json``, that of the least-squares fit, each constant
+        with ``hdi95``, ``r_hat``, ``ess_bulk`` and ``ess_tail`` too, and its
+        least-squares value and Wald interval under ``"ls"``."""
         from .._io import json_ready
 
         unit = self.spec.output[1]  # N for force models (keys rmse_N, sigma_N), rad for decays
@@ -395,33 +401,6 @@ class McmcResult:
         from ._arviz import to_inference_data
 
         return to_inference_data(self, i, predictive=predictive)
-
-    def plot_trace(self, i: int = 0, path=None, title: str | None = None):
-        """Traces and marginals of the constants and σ (ArviZ); saved to ``path`` (PNG) or,
-        without one, returned as a matplotlib figure."""
-        from ._arviz import plot_trace
-
-        return plot_trace(self, i, path, title)
-
-    def plot_pair(self, i: int = 0, path=None, title: str | None = None):
-        """Pair plot of the constants (ArviZ); saved to ``path`` or returned."""
-        from ._arviz import plot_pair
-
-        return plot_pair(self, i, path, title)
-
-    def plot_predictive(self, i: int = 0, path=None, title: str | None = None):
-        """Data against the posterior predictive, per pressure, with 95% bands; saved to
-        ``path`` or returned."""
-        from ._arviz import plot_predictive
-
-        return plot_predictive(self, i, path, title)
-
-    def save_netcdf(self, directory, muscles=None) -> list[str]:
-        """Write each muscle's DataTree to ``directory`` (``mcmc_<muscle>.nc``); returns the
-        names written. ``muscles``: indices (default all)."""
-        from ._arviz import save_netcdf
-
-        return save_netcdf(self, directory, muscles)
 
 
 # --------------------------------------------------------------------------------------

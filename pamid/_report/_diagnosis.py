@@ -1,4 +1,6 @@
-"""The diagnosis as a person reads it: a text report and residual plots before and after."""
+"""A :class:`pamid.Diagnosis` as a person reads it: the text report ``pamid diagnose``
+prints, and the residual before and after the selected effects, against each covariate and
+in time order. Figures are written atomically (:func:`pamid._io.save_figure_atomic`)."""
 
 from __future__ import annotations
 
@@ -21,7 +23,11 @@ def _ci(c: dict) -> str:
     return f"{c['value']:.4g} {c['unit']}  [{lo:.4g}, {hi:.4g}]"
 
 
-def format_report(d) -> str:
+def diagnosis_report(d) -> str:
+    """The diagnosis ``d`` as ``pamid diagnose`` prints it (and writes to report.txt): the
+    baseline's residual and its dependence on each covariate, the candidate effects, the
+    forward selection with the constants found (95 % intervals), the error before and after
+    (N for bench files, rad for decays), and what stays unexplained."""
     unit = "rad" if d.kind == "decay" else "N"
     what = "trials" if d.kind == "decay" else "muscles"
     lines = [f"pamid diagnose {d.path}",
@@ -145,16 +151,17 @@ def _subject(d) -> str:
     return f"{d.model}, {d.n_groups} {what}s"
 
 
-def plot_residuals(d, path, max_panels: int = 9):
-    """Residual against each covariate, before (grey) and after (blue) the selected effects.
+def plot_diagnosis_residuals(d, path=None, max_panels: int = 9):
+    """Residual [N, or rad for decays] against each covariate (the ``max_panels`` most
+    significant), before (grey) and after (blue) the selected effects.
 
     Big tables are drawn from every k-th sample of each curve (at most
-    :data:`pamid._plot.MAX_POINTS` points per panel, before and after together). Writes
-    ``path`` atomically and returns the figure.
+    :data:`pamid._report._plot.MAX_POINTS` points per panel, before and after together).
+    Writes ``path`` (PNG) atomically unless it is None, and returns the figure.
     """
     from matplotlib.figure import Figure
 
-    from .._plot import MAX_POINTS, axis_label, every_kth, shown, wrap
+    from ._plot import MAX_POINTS, axis_label, every_kth, shown, wrap
 
     unit = "rad" if d.kind == "decay" else "N"
     covs = list(d.residual_before["covariates"])
@@ -189,19 +196,21 @@ def plot_residuals(d, path, max_panels: int = 9):
     fig.suptitle(wrap(f"{_subject(d)}: residual before and after ({sel}), RMSE "
                       f"{d.rmse_before:.3g} → {d.rmse_after:.3g} {unit}", 45 * ncol)
                  + (f"\n{note}" if note else ""), fontsize=11)
-    save_figure_atomic(fig, path, dpi=110)
+    if path is not None:
+        save_figure_atomic(fig, path, dpi=110)
     return fig
 
 
-def plot_time_order(d, path):
-    """The residual in time order, before and after: what whiteness tests look at.
+def plot_diagnosis_time_order(d, path=None):
+    """The residual in time order, before and after the selected effects: what the
+    whiteness tests (runs, Ljung–Box) look at.
 
-    Big tables are drawn from every k-th sample of each curve. Writes ``path`` atomically
-    and returns the figure.
+    Big tables are drawn from every k-th sample of each curve. Writes ``path`` (PNG)
+    atomically unless it is None, and returns the figure.
     """
     from matplotlib.figure import Figure
 
-    from .._plot import MAX_POINTS, every_kth, shown, wrap
+    from ._plot import MAX_POINTS, every_kth, shown, wrap
 
     unit = "rad" if d.kind == "decay" else "N"
     keep, k = every_kth(_strata(d), MAX_POINTS)
@@ -220,5 +229,6 @@ def plot_time_order(d, path):
     note = shown(k, len(d.table))
     fig.suptitle(wrap(f"{_subject(d)}: residual in time order", 90)
                  + (f"\n{note}" if note else ""), fontsize=11)
-    save_figure_atomic(fig, path, dpi=110)
+    if path is not None:
+        save_figure_atomic(fig, path, dpi=110)
     return fig

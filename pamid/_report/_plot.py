@@ -1,5 +1,9 @@
 """Figures a person would rather look at than read: data against model, and residuals.
 
+The drawing of one muscle's rows (a bench frame, a model and its constants), shared by the
+fit's figures (:mod:`._fit`), the comparison's (:mod:`._compare`) and the diagnosis's
+(:mod:`._diagnosis`, which takes its subsampling and labels from here).
+
 Every bench file gives figures a person can read, whatever its size or noise:
 
 * the data are drawn per curve, as :func:`pamid._data._curves.find_curves` defines them:
@@ -35,7 +39,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from ._io import save_figure_atomic  # noqa: E402
+from .._io import save_figure_atomic  # noqa: E402
 
 #: Most samples drawn in one axes; bigger files are drawn from every k-th sample per curve.
 MAX_POINTS = 20_000
@@ -84,7 +88,7 @@ def _grid(ax) -> None:
 
 def _save(fig, path) -> None:
     """Write ``fig`` to ``path`` atomically at :data:`_DPI`; PNG unless the extension says
-    else.
+    else. Without a ``path`` (None) nothing is written: the figure is only returned.
 
     A PNG is laid out once, then drawn once: ``savefig`` lays a figure with a layout engine
     out in a dry-run draw and again in the real one, measuring every text twice (most of a
@@ -92,6 +96,8 @@ def _save(fig, path) -> None:
     then dropped, so that ``savefig`` draws the figure as laid out (the same pixels). zlib's
     fastest level encodes it (files ~10 % larger). The 13 figures of ``pamid fit --out`` on
     the AARL file, with :func:`_grid`'s ticks: 2.6 → 2.0 s of CPU (benchmarks/README.md)."""
+    if path is None:
+        return
     if Path(path).suffix.lower() not in ("", ".png"):
         save_figure_atomic(fig, path, dpi=_DPI)
         return
@@ -195,7 +201,7 @@ def shown(k: int, n: int) -> str:
 def _curves_of(frame, spec, curves):
     if curves is not None:
         return curves
-    from ._data._curves import find_curves
+    from .._data._curves import find_curves
 
     return find_curves(frame, contraction_column=spec.contraction_column)
 
@@ -385,7 +391,8 @@ def plot_fit(frame, spec, theta, path, title: str, *, curves=None) -> Figure:
     (``pamid._fit._spec.ModelSpec``) and ``theta`` its constants; ``curves`` the rows'
     :class:`pamid._data._curves.Curves` (found here when not given). Model lines are drawn
     at rest (zero velocity); residuals use every column the model takes. Writes ``path``
-    atomically and returns the figure (for inspection; it is not shown).
+    atomically (unless it is None) and returns the figure (for inspection; it is not
+    shown).
     """
     r = _Rows(frame, spec, theta, curves)
     kinds = [m for m in (0, 1) if np.any(r.curves.moving == m)]
@@ -456,7 +463,8 @@ def plot_residuals(frame, spec, theta, path, title: str, *, curves=None) -> Figu
     to end) and the fitted force. A file that mixes sweeps and isometric tests has no one
     moving input: its first panels are the contraction and the pressure as measured.
 
-    Arguments as :func:`plot_fit`; writes ``path`` atomically and returns the figure.
+    Arguments as :func:`plot_fit`; writes ``path`` atomically (unless it is None) and
+    returns the figure.
     """
     r = _Rows(frame, spec, theta, curves)
     cv = r.curves
@@ -499,7 +507,8 @@ def plot_residuals(frame, spec, theta, path, title: str, *, curves=None) -> Figu
 
 
 def plot_rmse_histogram(rmse, path, title: str) -> Figure:
-    """Distribution of the fit RMSE across many muscles."""
+    """Distribution of the fit RMSE [N] across many muscles; written to ``path`` (unless it
+    is None) and returned."""
     fig = Figure(figsize=(6.5, 4), layout="constrained")
     ax = fig.subplots()
     ax.hist(np.asarray(rmse), bins=min(60, max(10, len(rmse) // 20)), color="tab:blue")

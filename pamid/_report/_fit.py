@@ -1,0 +1,149 @@
+"""A least-squares fit (:class:`pamid.FitResult`) written out: its JSON document as text,
+and its figures (data against model, residuals, the RMSE across muscles) as ``pamid fit
+--out`` writes them.
+
+The JSON writer is here because it writes text; the document's layout (what an entry
+holds, in which order) is the result's own, shared with :meth:`pamid.FitResult.to_dict`
+(:func:`pamid._fit._api.fit_columns`, :func:`~pamid._fit._api.muscle_entry`). The figures
+are drawn by :mod:`._plot`, which this module imports only when a figure is asked for: the
+JSON path stays free of matplotlib.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .._fit._api import fit_columns, json_head, muscle_entry
+
+
+def fit_json(result, **extra) -> str:
+    """``json.dumps({**result.to_dict(), **extra})``, the same text, written without the
+    dictionaries: every muscle's entry is one ``%`` of a template that
+    :func:`pamid._fit._api.muscle_entry` lays out (3× faster: benchmarks/README.md,
+    "Figures that used to live in docstrings", (i)). ``extra``: keys added at the top level
+    after the fit's own (``pamid fit --json`` adds source, seconds, plots)."""
+    columns, optional = fit_columns(result)
+    columns = [_TEXT[kind](values) for kind, values in columns]
+    marks = [f"<<pamid-json-{k}>>" for k in range(len(columns))]
+    template = json.dumps(muscle_entry(result, iter(marks), optional)).replace("%", "%%")
+    at = [template.find(f'"{mark}"') for mark in marks]
+    if not all(a >= 0 for a in at) or at != sorted(at) or not all(
+            template.count(f'"{mark}"') == 1 for mark in marks):
+        return json.dumps({**result.to_dict(), **extra})  # a value that is no mark's text
+    for mark in marks:
+        template = template.replace(f'"{mark}"', "%s")
+    muscles = "[" + ", ".join(map(template.__mod__, zip(*columns))) + "]"
+    head = json.dumps({**json_head(result), "muscles": "<<pamid-json-muscles>>", **extra})
+    return head.replace('"<<pamid-json-muscles>>"', muscles, 1)
+
+
+def _json_floats(a) -> list[str]:
+    """A 1-D array as the JSON text of each element, as ``json.dumps`` writes the plain
+    values of :meth:`pamid.FitResult.to_dict`: ``float.__repr__``, null for NaN and ±inf."""
+    import numpy as np
+
+    a = np.asarray(a, dtype=np.float64)
+    texts = list(map(float.__repr__, a.tolist()))
+    for i in np.flatnonzero(~np.isfinite(a)).tolist():
+        texts[i] = "null"
+    return texts
+
+
+def _json_texts(values: list) -> list[str]:
+    """The JSON text of each of ``values``, as ``json.dumps`` writes it."""
+    ascii_text = json.encoder.encode_basestring_ascii  # what json.dumps uses for a str
+    return ["null" if v is None else ascii_text(v) if type(v) is str else json.dumps(v)
+            for v in values]
+
+
+#: JSON text of each kind of column of :func:`pamid._fit._api.fit_columns`.
+_TEXT = {
+    "text": _json_texts,
+    "int": lambda values: [str(int(v)) for v in values],
+    "bool": lambda values: ["true" if v else "false" for v in values],
+    "float": _json_floats,
+}
+
+
+# --------------------------------------------------------------------------------------
+# Figures.
+
+
+def bench_muscle(bench, i: int) -> tuple:
+    """Muscle ``i`` of a bench file as the figures take it: its rows (a DataFrame), its
+    name in file names ("muscle" in a file without a muscle column) and its label in titles
+    (the file's name there)."""
+    from .._io import safe_file_name
+
+    muscle = bench.muscles[i]
+    frame = bench.for_muscle(muscle)
+    name = safe_file_name(muscle) if bench.has_muscle_column else "muscle"
+    label = muscle if bench.has_muscle_column else Path(bench.path).name
+    return frame, name, label
+
+
+def _muscle(result, bench, i: int):
+    """:func:`bench_muscle`, with the rows' curves for the fitted model's inputs."""
+    from .._data._curves import find_curves
+
+    frame, name, label = bench_muscle(bench, i)
+    curves = find_curves(frame, contraction_column=result.spec.contraction_column)
+    return frame, curves, name, label
+
+
+def plot_fit(result, bench, i: int = 0, path=None, *, title: str | None = None):
+    """Muscle ``i`` of ``bench`` (the bench ``result`` was fitted to) against its fitted
+    model: force [N] against the moving input at each held level, the residual below;
+    one column of panels per kind of curve (sweeps, isometric tests). Written to ``path``
+    (PNG unless the extension says else) atomically, unless it is None; the matplotlib
+    figure is returned either way."""
+    from . import _plot
+
+    frame, curves, _, label = _muscle(result, bench, i)
+    return _plot.plot_fit(frame, result.spec, result.theta[i], path,
+                          title or f"{result.spec.source} fit — {label}", curves=curves)
+
+
+def plot_residuals(result, bench, i: int = 0, path=None, *, title: str | None = None):
+    """The residual [N] of muscle ``i`` against the moving input, the held level, the
+    elapsed time and the fitted force. Written to ``path`` atomically unless it is None;
+    the figure is returned."""
+    from . import _plot
+
+    frame, curves, _, label = _muscle(result, bench, i)
+    title = title or f"Residuals — {result.spec.source} fit — {label}"
+    return _plot.plot_residuals(frame, result.spec, result.theta[i], path, title,
+                                curves=curves)
+
+
+def plot_rmse_histogram(result, path=None, *, title: str | None = None):
+    """The distribution of the fit's RMSE [N] across its muscles. Written to ``path``
+    atomically unless it is None; the figure is returned."""
+    from . import _plot
+
+    return _plot.plot_rmse_histogram(
+        result.rmse_N, path, title or f"Fit RMSE across {result.n_muscles} muscles")
+
+
+def write_fit_plots(result, bench, folder, max_plots: int = 6) -> list[str]:
+    """What ``pamid fit --out`` draws: ``fit_<muscle>.png`` and ``residuals_<muscle>.png``
+    for the first ``max_plots`` muscles, and ``rmse_histogram.png`` when there are several;
+    each written atomically into ``folder``. Returns the file names written."""
+    from . import _plot
+
+    folder = Path(folder)
+    written = []
+    for i in range(len(bench.muscles[:max_plots])):
+        frame, curves, name, label = _muscle(result, bench, i)  # a few muscles only
+        title = f"{result.spec.source} fit — {label}"
+        _plot.plot_fit(frame, result.spec, result.theta[i], folder / f"fit_{name}.png", title,
+                       curves=curves)
+        _plot.plot_residuals(frame, result.spec, result.theta[i],
+                             folder / f"residuals_{name}.png", f"Residuals — {title}",
+                             curves=curves)
+        written += [f"fit_{name}.png", f"residuals_{name}.png"]
+    if result.n_muscles > 1:
+        plot_rmse_histogram(result, folder / "rmse_histogram.png")
+        written.append("rmse_histogram.png")
+    return written
