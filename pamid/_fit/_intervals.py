@@ -204,7 +204,8 @@ def _profile_ends(spec, theta_hat, cov, tcrit, s2, sse_min, x, y, w, max_steps, 
 
 
 def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: float = 0.95,
-            *, jtj_inv=None, max_steps: int = PROFILE_MAX_STEPS, tol: float = PROFILE_STEP_TOL,
+            *, jtj_inv=None, bounds=None, max_steps: int = PROFILE_MAX_STEPS,
+            tol: float = PROFILE_STEP_TOL,
             check: tuple[float, float] = (PROFILE_CHECK_STEP, PROFILE_SSE_TOL)):
     """Profile-likelihood (profile-t) intervals: for constant j, the values v for which the
     best fit with θ_j = v has (S(v) − S_min)/s² ≤ t² (Bates & Watts). Each end is found by
@@ -213,6 +214,11 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
 
     ``jtj_inv`` (M, p, p), (JᵀJ)⁻¹ at the optimum, places the starts at the ends of the
     linearised model; without it they are θ̂ ± t·se in the constant alone.
+
+    ``bounds``: (lower, upper) arrays (p,) of the constants' physical bounds (±inf where
+    none), as the fit took them: an end past its constant's bound is the bound (the values
+    beyond it are not possible values of the constant, however well the data would fit
+    them).
 
     Returns lower, upper (M, p) and a flag (M, p): True where both ends converged; an end
     that did not converge is NaN (an unbounded or badly determined constant).
@@ -234,7 +240,12 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     )
     ends, ok = np.asarray(ends), np.asarray(ok)
     ends = np.where(ok, ends, np.nan)
-    return ends[..., 0], ends[..., 1], ok.all(axis=-1)
+    lo, hi = ends[..., 0], ends[..., 1]
+    if bounds is not None and bounds[0] is not None:
+        with np.errstate(invalid="ignore"):  # NaN ends stay NaN
+            lo = np.where(lo < bounds[0], bounds[0], lo)
+            hi = np.where(hi > bounds[1], bounds[1], hi)
+    return lo, hi, ok.all(axis=-1)
 
 
 def _profile_chunk(spec: ModelSpec, n_params: int) -> int | None:
