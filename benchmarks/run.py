@@ -29,6 +29,14 @@ Rows (pamid | reference):
   hysteresis loop (baseline + every candidate, on all data and on each held-out fold, every
   muscle: one batched call) | the same refits as a loop of ``least_squares`` (lm, analytic
   Jacobian); the whole diagnosis end to end is reported beside it.
+- ``diagnose_aarl``: the same on the measured AARL 10 mm file (``../shared/data/
+  aarl_festo10mm_isometric.csv``, 61,515 rows, 6 muscles; skipped with a line when absent;
+  in the full run, and in ``--quick`` only when named by ``--only``): the first selection
+  step | the SciPy loop on every muscle (``--quick``: 2, scaled), on the candidates it can
+  reproduce by hand (those left out are named in the row); then
+  ``pamid.diagnose(load_bench(path))`` in a process of its own, first call and warm, its
+  peak RSS, what it selected and the RMSE before → after, against issue #16's targets
+  (≤ 60 s, ≤ 4 GB).
 
 Method. Every (row, side, N) runs in its own subprocess, so that its peak memory
 (``VmHWM``, see :func:`_peak_rss_mb`; imports and data included) is its own. pamid: "compile" =
@@ -524,115 +532,268 @@ def _diagnose_first_step(path):
     return problem, [(), *[(c,) for c in problem.candidate_names]]
 
 
+#: The transform effects the SciPy loop reproduces by hand (Sárosi eq. 2.1 only): the rig's
+#: compliance F = F_model(p, κ + c·F) and the pressure sensor's offset F = F_model(p + δ, κ).
+SCIPY_TRANSFORMS = ("compliance", "sensor_offset")
+
+
+def _scipy_left_out(problem) -> list[str]:
+    """Candidates of ``problem`` whose refits the SciPy loop cannot reproduce by hand: the
+    transform effects other than :data:`SCIPY_TRANSFORMS`. (Feature effects are linear in
+    their constants; the loop reads their columns from ``problem.features``.)"""
+    return [e.name for e in problem.effects
+            if e.transform is not None and e.name not in SCIPY_TRANSFORMS]
+
+
 def _scipy_refits(problem, sets, n_ref):
     """The first selection step done by hand: one ``scipy.optimize.least_squares`` (lm) per
-    (set, muscle, fold), analytic Jacobian (Sárosi eq. 2.1's partial derivatives and the
-    effects' features; 2-point differences for the implicit compliance law). Returns the
-    training SSE of every lane, in pamid's lane order, for the muscles < n_ref."""
+    (set, muscle, fold), analytic Jacobian: Sárosi eq. 2.1's partial derivatives, the
+    effects' feature columns (``problem.features``), the sensor offset δ (kPa) through
+    ∂F/∂p, and the compliance's implicit law F = F_model(p + δ, κ + c·F), solved by Newton
+    steps and differentiated implicitly (every derivative over 1 − c·∂F_model/∂κ). Returns
+    the training SSE of every lane, in pamid's lane order, for the muscles < n_ref.
+    ``sets`` may name no candidate of :func:`_scipy_left_out`."""
     import numpy as np
     from scipy.optimize import least_squares
 
     k = 6
     out = []
     for s in sets:
-        cols = [c for name in s if name != "compliance" for c in problem.effect(name).columns]
-        comp = "compliance" in s
+        cols = [c for name in s for c in problem.effect(name).columns]
+        comp, offset = "compliance" in s, "sensor_offset" in s
+        n_tr = comp + offset
         for m in range(n_ref):
-            w_all = problem.data.w[m] > 0
+            w_all = np.asarray(problem.data.w[m])
             p_bar, kappa = (np.asarray(x[m]) for x in problem.data.x)
             y = np.asarray(problem.data.y[m])
             for fold in range(problem.n_folds + 1):
-                train = w_all & ((problem.fold[m] != fold - 1) | (fold == 0))
+                train = (w_all > 0) & ((problem.fold[m] != fold - 1) | (fold == 0))
                 feats = problem.features[m, fold][:, cols]
                 pp, kk, yy, ff = p_bar[train], kappa[train], y[train], feats[train]
+                sw = np.sqrt(w_all[train])
 
-                def force(theta, c, pp=pp, kk=kk):
-                    a1, a2, a3, a4, a5, a6 = theta
-                    if not comp:
-                        return (a1 * pp + a2) * np.exp(a3 * kk) + a4 * kk * pp + a5 * pp + a6
-                    f = (a1 * pp + a2) * np.exp(a3 * kk) + a4 * kk * pp + a5 * pp + a6
-                    for _ in range(30):  # fixed point of F = F_model(p, κ + c·F)
-                        kc = kk + c * f
-                        f = (a1 * pp + a2) * np.exp(a3 * kc) + a4 * kc * pp + a5 * pp + a6
-                    return f
-
-                def resid(v, ff=ff, yy=yy):
+                def force(v, pp=pp, kk=kk):
+                    """F, ∂F_model/∂κ, ∂F_model/∂p, and the inputs the muscle feels."""
+                    a1, a2, a3, a4, a5, a6 = v[:k]
                     c = v[k] if comp else 0.0
-                    return force(v[:k], c) + ff @ v[k + comp:] - yy
+                    pe = pp + v[k + comp] / 100.0 if offset else pp  # δ in kPa, p in bar
 
-                def jac(v, pp=pp, kk=kk, ff=ff):
-                    a1, a2, a3 = v[:3]
-                    e = np.exp(a3 * kk)
-                    base = np.column_stack([pp * e, e, (a1 * pp + a2) * kk * e, kk * pp, pp,
-                                            np.ones_like(pp)])
-                    return np.column_stack([base, ff])
+                    def law(kc):
+                        e = np.exp(a3 * kc)
+                        return ((a1 * pe + a2) * e + a4 * kc * pe + a5 * pe + a6,
+                                a3 * (a1 * pe + a2) * e + a4 * pe)
 
-                v0 = np.concatenate([problem.theta0[m], [0.0] * comp, np.zeros(len(cols))])
-                sol = least_squares(resid, v0, jac="2-point" if comp else jac, method="lm",
-                                    ftol=1e-12, xtol=1e-12, gtol=1e-12)
+                    f = law(kk)[0]
+                    for _ in range(50 if comp else 0):  # Newton on F − F_model(p, κ + c·F)
+                        g, g_k = law(kk + c * f)
+                        step = (f - g) / (1.0 - c * g_k)
+                        f = f - step
+                        if np.max(np.abs(step)) <= 1e-13 * (1.0 + np.max(np.abs(f))):
+                            break
+                    kc = kk + c * f
+                    e = np.exp(a3 * kc)
+                    return f, law(kc)[1], a1 * e + a4 * kc + a5, pe, kc, e
+
+                def resid(v, ff=ff, yy=yy, sw=sw):
+                    return sw * (force(v)[0] + ff @ v[k + n_tr:] - yy)
+
+                def jac(v, ff=ff, sw=sw):
+                    a1, a2 = v[:2]
+                    f, g_k, g_p, pe, kc, e = force(v)
+                    nl = [pe * e, e, (a1 * pe + a2) * kc * e, kc * pe, pe, np.ones_like(pe)]
+                    nl += [g_k * f] * comp + [g_p / 100.0] * offset  # ∂/∂c, ∂/∂δ
+                    nl = np.column_stack(nl)
+                    if comp:  # implicit differentiation of F = F_model(p + δ, κ + c·F)
+                        nl = nl / (1.0 - v[k] * g_k)[:, None]
+                    return sw[:, None] * np.column_stack([nl, ff])
+
+                v0 = np.concatenate([problem.theta0[m], np.zeros(n_tr + len(cols))])
+                with np.errstate(over="ignore", invalid="ignore"):  # lm rejects such trials
+                    sol = least_squares(resid, v0, jac=jac, method="lm",
+                                        ftol=1e-12, xtol=1e-12, gtol=1e-12)
                 out.append(float(sol.fun @ sol.fun))
     return np.asarray(out)
 
 
+def _diagnose_end_to_end(path) -> dict:
+    """``pamid.diagnose(pamid.load_bench(path))`` twice: the first call compiles (the
+    persistent cache is off), the second is the warm time; what it selected, RMSE before
+    and after."""
+    import pamid
+
+    walls, cpus = [], []
+    for _ in range(2):
+        t, c = time.perf_counter(), time.process_time()
+        d = pamid.diagnose(pamid.load_bench(path))
+        walls.append(time.perf_counter() - t)
+        cpus.append(time.process_time() - c)
+    return {"end_to_end_s": walls[1], "end_to_end_first_s": walls[0],
+            "end_to_end_compile_s": max(walls[0] - walls[1], 0.0),
+            "end_to_end_cpu_s": cpus[1], "selected": d.selected,
+            "rmse_before": d.rmse_before, "rmse_after": d.rmse_after,
+            "rows_used": d.rows_used, "rows_total": d.rows_total}
+
+
 def bench_diagnose_worker(spec: dict) -> tuple[dict, object]:
+    """One side of a diagnose row. "pamid": the first selection step, then (unless
+    ``spec["end_to_end"] == "alone"``) the whole diagnosis warm in the same process;
+    "end_to_end": only :func:`_diagnose_end_to_end`, so that its peak memory is its own;
+    "reference": the SciPy loop on the first ``ref_max`` muscles, on the candidate sets it
+    can reproduce (:func:`_scipy_left_out`)."""
     import numpy as np
 
-    out = {}
+    if spec["side"] == "end_to_end":
+        return _diagnose_end_to_end(spec["data"]), None
     problem, sets = _diagnose_first_step(spec["data"])
+    left_out = set(_scipy_left_out(problem))
+    compared = [i for i, s in enumerate(sets) if not left_out & set(s)]
+    out = {"candidates": problem.candidate_names, "left_out": sorted(left_out),
+           "lanes": len(sets) * problem.data.y.shape[0] * (problem.n_folds + 1)}
     n, n_ref = spec["n"], min(spec["n"], spec["ref_max"])
     if spec["side"] == "pamid":
         import pamid
 
         def step():
-            return np.stack([f.sse for f in problem.evaluate(sets)])  # (sets, muscles)
+            fits = problem.evaluate(sets)
+            return (np.stack([f.sse for f in fits]),  # (sets, muscles)
+                    np.stack([f.converged for f in fits]))
 
-        timing, sse = _time_pamid(step, 3 if spec["quick"] else 5)
-        out.update(timing)
-        pamid.diagnose(spec["data"])  # compiles the later steps' shapes too
-        t = time.perf_counter()
-        d = pamid.diagnose(spec["data"])
-        out["end_to_end_s"] = time.perf_counter() - t
-        out["selected"] = d.selected
-        result = sse[:, :n_ref]
+        timing, (sse, ok) = _time_pamid(step, spec.get("repeats") or (3 if spec["quick"] else 5))
+        out.update(timing, compared=[" + ".join(sets[i]) or "baseline" for i in compared],
+                   converged=ok[compared, :n_ref].tolist())
+        if spec.get("end_to_end") != "alone":
+            pamid.diagnose(spec["data"])  # compiles the later steps' shapes too
+            t = time.perf_counter()
+            d = pamid.diagnose(spec["data"])
+            out["end_to_end_s"] = time.perf_counter() - t
+            out["selected"] = d.selected
+        result = sse[compared, :n_ref]
     else:
-        seconds, lanes = _time_reference(lambda: _scipy_refits(problem, sets, n_ref), 1,
+        ref_sets = [sets[i] for i in compared]
+        seconds, lanes = _time_reference(lambda: _scipy_refits(problem, ref_sets, n_ref), 1,
                                          min_total_s=0.0)
         out["reference_s"] = seconds * n / n_ref
         folds = problem.n_folds + 1
-        result = lanes.reshape(len(sets), n_ref, folds)[:, :, 0]  # full-data lanes
+        result = lanes.reshape(len(ref_sets), n_ref, folds)[:, :, 0]  # full-data lanes
     return out, result
 
 
-def bench_diagnose(args, tmp: Path, timeout: float) -> list[dict]:
-    """`pamid diagnose` on a 100-muscle file: its first selection step (baseline and every
-    candidate refitted on all data and on each held-out fold, all muscles: one batched call)
-    beside the same refits as a SciPy loop; the whole diagnosis end to end as well."""
-    n = 100
-    ref_max = 10 if args.quick else 100
-    path = make_diagnose_data(n, tmp)
+#: The measured file of the ``diagnose_aarl`` row (``../shared/data/README.md``); the row is
+#: skipped without it.
+AARL_FILE = HERE.parent.parent / "shared" / "data" / "aarl_festo10mm_isometric.csv"
+#: ``diagnose_aarl``: SciPy loop on at most this many of its 6 muscles; warm repeats.
+AARL_REF_MAX = {"quick": 2, "full": 6}
+AARL_REPEATS = 3
+
+
+def bench_diagnose(args, tmp: Path, timeout: float, path: Path | None = None) -> list[dict]:
+    """`pamid diagnose`'s first selection step (baseline and every candidate refitted on all
+    data and on each held-out fold, all muscles: one batched call) beside the same refits as
+    a SciPy loop; the whole diagnosis end to end as well.
+
+    ``path`` None: a 100-muscle virtual file hiding a hysteresis loop (the ``diagnose`` row;
+    the end to end runs in pamid's process). A bench file (the ``diagnose_aarl`` row): that
+    file as it is, the SciPy loop on up to :data:`AARL_REF_MAX` muscles, and
+    ``pamid.diagnose(load_bench(path))`` in a process of its own, cold and warm, with its
+    peak memory, what it selected and the RMSE before and after."""
+    import numpy as np
+
+    mode = "quick" if args.quick else "full"
+    if path is None:
+        n, ref_max, tag = 100, 10 if args.quick else 100, "diagnose"
+        path = make_diagnose_data(n, tmp)
+        name, what = "diagnose, first selection step", "100 muscles"
+        sides = ("pamid", "reference")
+    else:
+        import pamid
+
+        bench = pamid.load_bench(path)
+        n, ref_max, tag = len(bench.muscles), AARL_REF_MAX[mode], "diagnose_aarl"
+        name = "diagnose AARL 10 mm, first selection step"
+        what = f"AARL 10 mm file, {len(bench.frame):,} rows, {n} muscles, own process"
+        sides = ("pamid", "reference", "end_to_end")
+        del bench
     spec = {"bench": "diagnose", "n": n, "quick": args.quick, "ref_max": ref_max,
-            "data": str(path)}
+            "data": str(path), "end_to_end": "alone" if "end_to_end" in sides else "after",
+            "repeats": AARL_REPEATS if tag == "diagnose_aarl" else None}
     res = {}
-    for side in ("pamid", "reference"):
-        say(f"  diagnose N={n} {side} …")
-        out_path = tmp / f"diagnose_{side}.npy"
+    for side in sides:
+        say(f"  {tag} N={n} {side} …")
+        out_path = tmp / f"{tag}_{side}.npy"
         res[side] = run_worker({**spec, "side": side, "result": str(out_path)}, timeout)
         res[side]["result_path"] = str(out_path)
     p, r = res["pamid"], res["reference"]
-    row = _row("diagnose, first selection step", n, "scipy least_squares loop, same refits",
-               p, r, n > ref_max)
-    row.update(diagnose_end_to_end_s=p.get("end_to_end_s"), diagnose_selected=p.get("selected"))
-    import numpy as np
-
+    e2e = res.get("end_to_end", p)
+    reference = "scipy least_squares loop, same refits"
+    if tag == "diagnose_aarl":
+        left = ", ".join(r.get("left_out", [])) or "none"
+        reference += (f" ({min(n, ref_max)} of {n} muscles"
+                      f"{', scaled' if n > ref_max else ''}; candidates left out: {left})")
+    row = _row(name, n, reference, p, r, n > ref_max)
+    row.update(diagnose_label=what, diagnose_end_to_end_s=e2e.get("end_to_end_s"),
+               diagnose_selected=e2e.get("selected"))
+    if "end_to_end" in res:
+        row.update({f"diagnose_{k}": e2e.get(k) for k in (
+            "end_to_end_first_s", "end_to_end_compile_s", "end_to_end_cpu_s", "rmse_before",
+            "rmse_after", "rows_used", "rows_total")}, diagnose_peak_rss_mb=e2e.get("peak_rss_mb"),
+            diagnose_candidates=p.get("candidates"), diagnose_lanes=p.get("lanes"))
     pa, ra = Path(p["result_path"]), Path(r["result_path"])
     if pa.is_file() and ra.is_file():
         a, b = np.load(pa), np.load(ra)
-        row["max_diff"] = float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300)))
-    errors = [f"{s}: {x['error']}" for s, x in (("pamid", p), ("reference", r)) if "error" in x]
+        rel = np.abs(a - b) / np.maximum(np.abs(b), 1e-300)
+        row["max_diff"] = float(np.max(rel))
+        ok = np.asarray(p.get("converged", np.ones(a.shape, bool)), bool)
+        if ok.shape == a.shape and not ok.all():  # pamid's LM stopped at its step cap
+            sets = np.asarray(p["compared"])
+            row.update(max_diff_converged=float(np.max(rel[ok], initial=0.0)),
+                       lanes_compared=int(a.size), lanes_not_converged={
+                           str(x): int(np.sum(~ok[sets == x])) for x in sets[~ok.all(axis=1)]},
+                       max_diff_not_converged=float(np.max(rel[~ok])),
+                       scipy_lower_not_converged=int(np.sum(b[~ok] < a[~ok])))
+    errors = [f"{s}: {x['error']}" for s, x in res.items() if "error" in x]
     if errors:
         row["error"] = "; ".join(errors)
         say(f"    {row['error']}")
     return [row]
+
+
+def _diagnose_lines(row) -> list[str]:
+    """The lines printed under the table for one diagnose row."""
+    if not row.get("diagnose_end_to_end_s"):
+        return []
+    selected = ", ".join(row["diagnose_selected"]) or "nothing"
+    lines = []
+    if row.get("lanes_not_converged"):
+        from pamid._diagnose._static import MAX_ITER
+
+        where = ", ".join(f"{k} on {v} muscle{'s' * (v > 1)}"
+                          for k, v in row["lanes_not_converged"].items())
+        n_bad = sum(row["lanes_not_converged"].values())
+        lines.append(
+            f"  {row['name']}: SSE within {row['max_diff_converged']:.1e} of SciPy's on the "
+            f"{row['lanes_compared'] - n_bad} of {row['lanes_compared']} full-data lanes "
+            f"(set × muscle) where pamid's LM converged; {n_bad} stopped at its {MAX_ITER} "
+            f"steps unconverged ({where}): there up to "
+            f"{row['max_diff_not_converged']:.1e}, SciPy's lower in "
+            f"{row['scipy_lower_not_converged']}")
+    if row.get("diagnose_peak_rss_mb") is None:
+        return [f"diagnose end to end ({row['diagnose_label']}, warm): "
+                f"{row['diagnose_end_to_end_s']:.2f} s; selected {selected}", *lines]
+    warm, first = row["diagnose_end_to_end_s"], row["diagnose_end_to_end_first_s"]
+    mb = row["diagnose_peak_rss_mb"]
+    met = lambda ok: "met" if ok else "NOT met"  # noqa: E731
+    return [
+        f"diagnose end to end ({row['diagnose_label']}): warm {warm:.2f} s (CPU "
+        f"{row['diagnose_end_to_end_cpu_s']:.1f} s; first call {first:.2f} s, compile "
+        f"{row['diagnose_end_to_end_compile_s']:.2f} s), peak RSS "
+        f"{mb:,.0f} MB; selected {selected}; RMSE {row['diagnose_rmse_before']:.2f} → "
+        f"{row['diagnose_rmse_after']:.2f} N",
+        f"  first step: {len(row['diagnose_candidates'] or [])} candidates + baseline, "
+        f"{row['diagnose_lanes']} lanes (set × muscle × fold); targets: ≤ 60 s "
+        f"{met(warm <= 60.0)} warm, {met(first <= 60.0)} on the first call; ≤ 4 GB "
+        f"{met(mb <= 4096.0)}",
+        *lines,
+    ]
 
 
 def log_log_slope(ns, ts):
@@ -650,7 +811,8 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="small sizes, fewer repeats")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     ap.add_argument("--only", help="comma-separated benchmarks: "
-                    + ",".join([*(r[0] for r in ROWS), "diagnose"]))
+                    + ",".join([*(r[0] for r in ROWS), "diagnose", "diagnose_aarl"])
+                    + " (diagnose_aarl: the full run, or --quick when named)")
     ap.add_argument("--timeout", type=float, help="seconds per subprocess (900; quick 300)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -744,8 +906,15 @@ def main(argv=None) -> int:
                 rows.append(row)
 
         diagnose = []
-        if not args.only or "diagnose" in args.only.split(","):
+        only = args.only.split(",") if args.only else None
+        if not only or "diagnose" in only:
             diagnose = bench_diagnose(args, tmp, timeout)
+        if (only and "diagnose_aarl" in only) or (not only and not args.quick):
+            if AARL_FILE.is_file():
+                diagnose += bench_diagnose(args, tmp, timeout, AARL_FILE)
+            else:
+                say(f"diagnose_aarl skipped: no measured file at {AARL_FILE} "
+                    "(see ../shared/data/README.md)", file=out_text)
     for row in rows:
         row.pop("_pamid", None)
         row.pop("bench", None)
@@ -769,36 +938,37 @@ def main(argv=None) -> int:
                 f"{row['max_diff']:.1e}" if row.get("max_diff") is not None else "—",
             ]
         )
-    say("", file=out_text)
-    say(
-        table(
-            [
-                "benchmark",
-                "N",
-                "pamid",
-                "compile",
-                "reference",
-                "ref time",
-                "speedup",
-                "pamid MB",
-                "ref MB",
-                "max diff",
-            ],
-            lines,
-        ),
-        file=out_text,
-    )
-    say(
-        "  pamid = median warm call; compile = first call − warm call; * reference timed on "
-        "the first muscles and scaled linearly; MB = peak RSS of the subprocess (imports and "
-        "data included); max diff = largest relative difference of the fitted constants "
-        "(decays: |Δangle| in rad) on the reference's muscles.",
-        file=out_text,
-    )
+    if lines:  # none where the only row asked for was skipped
+        say("", file=out_text)
+        say(
+            table(
+                [
+                    "benchmark",
+                    "N",
+                    "pamid",
+                    "compile",
+                    "reference",
+                    "ref time",
+                    "speedup",
+                    "pamid MB",
+                    "ref MB",
+                    "max diff",
+                ],
+                lines,
+            ),
+            file=out_text,
+        )
+        say(
+            "  pamid = median warm call; compile = first call − warm call; * reference timed on "
+            "the first muscles and scaled linearly; MB = peak RSS of the subprocess (imports and "
+            "data included); max diff = largest relative difference of the fitted constants "
+            "(decays: |Δangle| in rad; diagnose: of the full-data SSE of every set) on the "
+            "reference's muscles.",
+            file=out_text,
+        )
     for row in diagnose:
-        if row.get("diagnose_end_to_end_s"):
-            say(f"diagnose end to end (100 muscles, warm): {row['diagnose_end_to_end_s']:.2f} s; "
-                f"selected {', '.join(row['diagnose_selected']) or 'nothing'}", file=out_text)
+        for line in _diagnose_lines(row):
+            say(line, file=out_text)
 
     mc = [r for r in rows if "pamid_ess_per_s" in r]
     if mc:
