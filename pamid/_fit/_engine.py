@@ -34,6 +34,12 @@ CONVERGED, MAX_STEPS, NONFINITE, STALLED = 0, 1, 2, 3
 RESULT_NAMES = ("converged", "max_steps", "nonfinite", "stalled")
 #: Damping beyond which no step can lower the sum of squares: the loop has stalled.
 MAX_DAMPING = 1e16
+#: Relative ridge of the stopping test's Newton decrement (on JᵀJ scaled to unit diagonal):
+#: directions the data cannot pin (a candidate effect collinear with the model) have
+#: eigenvalues near zero, and a plain solve turns rounding in g into an enormous or NaN
+#: decrement, so such a lane never passes the test although no step can lower its SSE.
+#: With the ridge, rounding there adds about ε²/RIDGE ≈ 1e-20 of the SSE.
+DECREMENT_RIDGE = 1e-12
 
 
 class Solution(NamedTuple):
@@ -63,6 +69,15 @@ def masked_normal(jac, r, mask):
     return mask * (jac.T @ r), h
 
 
+def newton_decrement(g, h):
+    """gᵀ(JᵀJ)⁻¹g, the decrease of the SSE that a Gauss–Newton step would give, with
+    directions of relative curvature below :data:`DECREMENT_RIDGE` left out (a ridge on
+    the diagonal of JᵀJ, relative to that diagonal)."""
+    d = jnp.diag(h)
+    d = jnp.maximum(d, 1e-300 + 1e-16 * jnp.max(d))
+    return g @ jnp.linalg.solve(h + DECREMENT_RIDGE * jnp.diag(d), g)
+
+
 def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: float,
                         floor=0.0, damping0: float = 1e-3) -> Solution:
     """Minimise ‖r(p)‖² for one lane from ``p0``, holding the constants where ``mask`` is 0.
@@ -82,7 +97,7 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
         return r, jac, g, h, r @ r
 
     def small(g, h, sse):
-        return g @ jnp.linalg.solve(h, g) <= rtol * sse + floor
+        return newton_decrement(g, h) <= rtol * sse + floor
 
     r, jac, g, h, sse = lin(p0)
     state = (p0, r, jac, g, h, sse, jnp.asarray(damping0, p0.dtype),
