@@ -40,9 +40,10 @@ def register(subparsers) -> None:
     )
     diag.add_argument("data", help="bench file (CSV, Parquet or .xlsx) or decay file (time_s, "
                                    "angle_rad|angle_deg, optional trial)")
-    from ._model import add_model_argument
+    from ._model import add_bounds_argument, add_model_argument
 
     add_model_argument(diag)
+    add_bounds_argument(diag)
     diag.add_argument("--inertia", type=float, dest="inertia_kg_m2", metavar="J",
                       help="moment of inertia of the arm in kg·m² (decay files)")
     diag.add_argument("--folds", type=int, default=5,
@@ -75,15 +76,16 @@ def cmd_diagnose(args) -> int:
     def progress(msg: str) -> None:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    from ._model import check_model
+    from ._model import check_model, parse_bounds
 
-    check_model(args.model)  # a typo or a broken model file: one line, before reading data
+    spec = check_model(args.model)  # a typo or a broken model file: one line, before reading
+    bounds = parse_bounds(args.bounds, spec)  # bad text: one line, exit 2
     progress(f"diagnosing {args.data}")
     from ._reading import reading_options
 
     d = diagnose(args.data, model=args.model, inertia_kg_m2=args.inertia_kg_m2,
                  n_folds=args.folds, progress=progress, read_options=reading_options(args),
-                 max_rows=args.max_rows)
+                 max_rows=args.max_rows, bounds=bounds)
     out_json = d.to_dict()
     if args.out:
         out = Path(args.out)

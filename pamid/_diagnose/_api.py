@@ -29,7 +29,7 @@ from ._select import forward_select
 
 def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
              n_folds: int = 5, progress=None, read_options: dict | None = None,
-             max_rows: int | None = None) -> Diagnosis:
+             max_rows: int | None = None, bounds=None) -> Diagnosis:
     """Diagnose a bench or decay file (a path, a :class:`~pamid.BenchData` or a
     :class:`~pamid.DecayData`).
 
@@ -37,6 +37,13 @@ def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
     ``time_s`` and optionally ``trial``) and diagnosed with the oscillator model; they need
     ``inertia_kg_m2`` for the friction torque in N·m. ``read_options`` are keyword
     arguments of :func:`~pamid.load_bench` for a bench file given as a path.
+
+    ``bounds``: (lower, upper) arrays over the model's constants (±inf where none), in place
+    of the model's physical bounds, as :func:`~pamid.fit_least_squares` takes them. The
+    baseline is fitted within them; a constant it holds on a bound stays there when effects
+    are refitted on top, and an effect whose refit moves a constant past its bound is not
+    selected (the candidate's row says which constant would have needed what). Bench files
+    only.
 
     ``max_rows``: a bench file with more rows is diagnosed on a representative subsample of
     whole curves (:func:`subsample_curves`); the diagnosis says so (``rows_used``,
@@ -53,12 +60,16 @@ def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
     if isinstance(data, DecayData):
         from ._decay import diagnose_decays
 
+        if bounds is not None:
+            raise ValueError(f"{data.path}: bounds (--bounds) are for a bench file's force "
+                             "model; a decay file is diagnosed with the oscillator model")
+
         return diagnose_decays(data, inertia_kg_m2, n_folds=n_folds, progress=progress)
     if not isinstance(data, BenchData):
         raise TypeError(f"diagnose takes a path, BenchData or DecayData, not {type(data)}")
     if max_rows is not None and max_rows < 1:
         raise ValueError(f"max_rows (--max-rows) must be at least 1, not {max_rows}")
-    return _diagnose_bench(data, model, n_folds, progress, max_rows)
+    return _diagnose_bench(data, model, n_folds, progress, max_rows, bounds)
 
 
 def _is_decay_file(path: Path) -> bool:
@@ -153,7 +164,7 @@ def _check_baseline(bench, spec, baseline) -> None:
 
 
 def _diagnose_bench(bench, model: str, n_folds: int, progress,
-                    max_rows: int | None = None) -> Diagnosis:
+                    max_rows: int | None = None, bounds=None) -> Diagnosis:
     from .._fit._spec import get_model
     from ._static import StaticProblem, intervals
 
@@ -166,7 +177,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
                      "(--max-rows)")
     spec = get_model(model, bench.frame)
     _check_enough_rows(bench, spec)
-    problem = StaticProblem(bench, spec, n_folds=n_folds)
+    problem = StaticProblem(bench, spec, n_folds=n_folds, bounds=bounds)
     _check_baseline(bench, spec, problem.baseline)
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
                             progress=progress, unphysical=problem.unphysical,

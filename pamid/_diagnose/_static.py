@@ -62,6 +62,7 @@ from .._fit._batch import map_lanes, pack
 from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
 from .._fit._sharding import lane_devices
+from .._fit._least_squares import bounds_arrays
 from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
 from ._residual import legendre_basis, scaled
@@ -191,8 +192,11 @@ def _muscle_rows(bench) -> list[np.ndarray]:
 class StaticProblem:
     """One bench file prepared for diagnosis: packed data, covariates and effect features."""
 
-    def __init__(self, bench, spec: ModelSpec, *, n_folds: int = N_FOLDS):
+    def __init__(self, bench, spec: ModelSpec, *, n_folds: int = N_FOLDS, bounds=None):
         self.spec = spec
+        #: Bounds of the model's constants (``bounds`` where given, the model's physical
+        #: bounds elsewhere; :func:`pamid._fit._least_squares.bounds_arrays`), or None.
+        self.lower, self.upper = bounds_arrays(spec, bounds)
         self.bench = bench
         frames, curve_ids, muscle_curves = [], [], []
         curves = bench.curves  # the file's one curve structure (pamid._data._curves)
@@ -214,8 +218,13 @@ class StaticProblem:
         # The baseline: the model alone, with its statistics, so that a fit the data cannot
         # determine is known (and said why) before any candidate is refitted on top of it.
         self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
-                                          muscles=tuple(bench.muscles))
+                                          muscles=tuple(bench.muscles), bounds=bounds)
         self.theta0 = self.baseline.theta
+        # A constant the baseline holds on a bound stays there in every refit (its gradient
+        # points out of the bounds; an effect added on top is judged with it held).
+        self.base_free = np.ones_like(np.asarray(self.theta0, float))
+        if self.lower is not None:
+            self.base_free[_on_bound(self.theta0, self.lower, self.upper)] = 0.0
         self.baseline_converged = self.baseline.converged
         self.l0_mm = [bench.l0_mm.get(m_id) for m_id in bench.muscles]
         self.file = self._file_context(allrows, muscle_curves)
@@ -459,13 +468,31 @@ class StaticProblem:
 
     def unphysical(self, fit: SetFit, name: str) -> str | None:
         """Why effect ``name``'s constants in ``fit`` are not physical (the first muscle
-        where they are not), or None."""
+        where they are not), or why the model's constants refitted with it are past their
+        bounds; None when neither."""
         e = self.effect(name)
         for i, m in enumerate(self.muscles):
+            who = f"muscle {self.bench.muscles[i]}: " if len(self.muscles) > 1 else ""
             msg = e.definition.violation(self.constants_of(fit, name, i), e, self.file, m)
             if msg is not None:
-                who = f"muscle {self.bench.muscles[i]}: " if len(self.muscles) > 1 else ""
                 return who + msg
+            msg = self._past_bounds(fit.extra["params"][i][: self.spec.n_params])
+            if msg is not None:
+                return f"{who}with {name}, {msg}"
+        return None
+
+    def _past_bounds(self, theta) -> str | None:
+        """"a3 would need -3.4 < -3 (its lower bound)" for the first of the model's
+        constants past its bound, or None."""
+        if self.lower is None:
+            return None
+        theta = np.asarray(theta, float)
+        for j, pname in enumerate(self.spec.param_names):
+            low, high = self.lower[j], self.upper[j]
+            if theta[j] < low and not _on_bound(theta[j], low, high):
+                return f"{pname} would need {theta[j]:.4g} < {low:.4g} (its lower bound)"
+            if theta[j] > high and not _on_bound(theta[j], low, high):
+                return f"{pname} would need {theta[j]:.4g} > {high:.4g} (its upper bound)"
         return None
 
     # -- fitting -----------------------------------------------------------------------------
@@ -548,19 +575,30 @@ class StaticProblem:
                 cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test > 0)),
                 converged=ok[full] & self.baseline_converged,
                 extra={"params": params[full], "jtj_inv": jtj_inv[full],
-                       "full_rank": rank[full] == k + len(slots[i]) + int(trmask[i].sum()),
+                       "full_rank": rank[full] == (np.sum(self.base_free, axis=1)
+                                                   + len(slots[i]) + int(trmask[i].sum())),
                        "residual": resid[full], "slots": slots[i],
                        "compliance": bool(implicit[i])},
             ))
         return results
 
     def _shared_arrays(self):
-        """What every lane gathers from, on the device once: (θ0, x, y, w, fold, features)."""
+        """What every lane gathers from, on the device once: (θ0, x, y, w, fold, features,
+        which base constants are free)."""
         if getattr(self, "_shared", None) is None:
             self._shared = (jnp.asarray(self.theta0), tuple(jnp.asarray(xi) for xi in self.data.x),
                             jnp.asarray(self.data.y), jnp.asarray(self.data.w),
-                            jnp.asarray(self.fold), jnp.asarray(self.features))
+                            jnp.asarray(self.fold), jnp.asarray(self.features),
+                            jnp.asarray(self.base_free))
         return self._shared
+
+
+def _on_bound(theta, lower, upper):
+    """Whether constants lie on (or, by rounding, just past) a bound: within 1e-9 of it,
+    relative to the bound's size."""
+    theta = np.asarray(theta, float)
+    near = lambda b: np.isfinite(b) & (np.abs(theta - b) <= 1e-9 * (1.0 + np.abs(b)))  # noqa: E731
+    return near(lower) | near(upper)
 
 
 def _step_input(covariates, muscle_curves) -> str | None:
@@ -705,7 +743,7 @@ def numerical_rank(jac, rtol: float = RANK_RTOL):
 def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
     """One lane: the set's effect columns ``cols`` (masked by ``colmask``) fitted to
     ``muscle``'s samples, all of them (``fold`` 0) or all but fold ``fold − 1``."""
-    theta0_all, x_all, y_all, w_all, fold_all, feat_all = shared
+    theta0_all, x_all, y_all, w_all, fold_all, feat_all, free_all = shared
     theta0 = theta0_all[muscle]
     x = tuple(xi[muscle] for xi in x_all)
     y = y_all[muscle]
@@ -718,7 +756,7 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
     n_tr = len(transforms())
     # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
     # linear slots'; masked constants stay at zero.
-    mask = jnp.concatenate([jnp.ones(k), colmask])
+    mask = jnp.concatenate([free_all[muscle], colmask])
     sw = jnp.sqrt(w)
     lin = feats * colmask[None, n_tr:]
 

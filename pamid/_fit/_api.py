@@ -11,7 +11,7 @@ import pandas as pd
 from .._data._bench import BenchData
 from . import _correlated, _intervals
 from ._batch import FitData, pack_rows
-from ._least_squares import _bounds_arrays, fit_lanes, statistics
+from ._least_squares import bounds_arrays, fit_lanes, statistics
 from ._spec import ModelSpec, get_model
 
 INTERVAL_KINDS = ("wald", "profile", "bootstrap", "cluster", "hac")
@@ -402,7 +402,7 @@ def fit_least_squares(
     if "profile" in intervals:
         plo, phi, profile_ok = _intervals.profile(spec, data, theta, se, s2, sse, dof, level,
                                                   jtj_inv=jtj_inv,
-                                                  bounds=_bounds_arrays(spec, bounds))
+                                                  bounds=bounds_arrays(spec, bounds))
         ci_profile = np.stack([plo, phi], axis=-1)
     ci_boot = boot_ok = None
     if "bootstrap" in intervals:

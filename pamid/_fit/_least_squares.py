@@ -463,7 +463,7 @@ def start_candidates(spec: ModelSpec, data: FitData, bounds=None):
     if spec.candidates is not None:
         return map_lanes(spec.candidates, data.x, data.y, data.w,
                          cache_key=_key("candidates", spec))
-    lower, upper = _bounds_arrays(spec, bounds)
+    lower, upper = bounds_arrays(spec, bounds)
     if spec.model_class is None or lower is None:
         return None
     key = (id(spec), tuple(lower.tolist()), tuple(upper.tolist()))
@@ -485,7 +485,7 @@ def start_candidates(spec: ModelSpec, data: FitData, bounds=None):
     return None if fn is None else fn(data.x, data.y, data.w)
 
 
-def _bounds_arrays(spec: ModelSpec, bounds):
+def bounds_arrays(spec: ModelSpec, bounds):
     """The bounds of a fit as two float arrays of length p, or (None, None): ``bounds``
     where it gives a finite value, the model's physical bounds (``spec.bounds``) elsewhere."""
     if bounds is None and spec.bounds is None:
@@ -515,7 +515,7 @@ def _bounds_arrays(spec: ModelSpec, bounds):
     return out
 
 
-#: The spec's own bounds as arrays, by spec (``_bounds_arrays``: once per spec, not per fit).
+#: The spec's own bounds as arrays, by spec (``bounds_arrays``: once per spec, not per fit).
 _OWN_BOUNDS: dict = {}
 
 
@@ -579,7 +579,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     """
     k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
     k_retry = max(k, RETRY_STARTS)
-    lower, upper = _bounds_arrays(spec, bounds)
+    lower, upper = bounds_arrays(spec, bounds)
     out = None
     if theta0 is None and k > 1 and not (solver == "gauss-newton" and spec.fast_path is not None):
         out = _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower, upper)
