@@ -70,6 +70,9 @@ from ._select import SetFit
 
 N_FOLDS = 5
 MAX_ITER = 60
+#: Solves of a lane at most: the first, then again with the constants that left their
+#: bounds held on them (:meth:`StaticProblem.evaluate`).
+BOUND_PASSES = 3
 #: Stopping test of the refits (:func:`pamid._fit._engine.levenberg_marquardt`): the
 #: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
 RTOL = 1e-11
@@ -536,22 +539,45 @@ class StaticProblem:
         # compiled functions: the implicit force law costs four Newton steps that the other
         # lanes do not need.
         lane_comp = implicit[lanes_set]
-        parts = {}
-        for flag in (False, True):
-            sel = np.flatnonzero(lane_comp == flag)
-            if len(sel) == 0:
-                continue
-            parts[flag] = (sel, _fit_lanes(
-                self.spec, flag, shared, lanes_muscle[sel], lanes_fold[sel],
-                cols[lanes_set[sel]], colmask[lanes_set[sel]],
-            ))
-        outs = []
-        for j in range(7):
-            first = next(iter(parts.values()))[1][j]
-            arr = np.zeros((len(lanes_set), *np.shape(first)[1:]), dtype=np.asarray(first).dtype)
+        # The model's constants start at the baseline's; those it holds on a bound are held
+        # there. A lane whose refit takes a constant past its bound is solved again with
+        # that constant held on the bound (an active set, as the fit's own bounded refit),
+        # at most BOUND_PASSES times.
+        free = self.base_free[lanes_muscle].copy()
+        start = np.asarray(self.theta0, float)[lanes_muscle].copy()
+        outs = None
+        todo = np.arange(len(lanes_set))
+        for _ in range(BOUND_PASSES):
+            parts = {}
+            for flag in (False, True):
+                sel = todo[lane_comp[todo] == flag]
+                if len(sel) == 0:
+                    continue
+                parts[flag] = (sel, _fit_lanes(
+                    self.spec, flag, shared, lanes_muscle[sel], lanes_fold[sel],
+                    cols[lanes_set[sel]], colmask[lanes_set[sel]], free[sel], start[sel],
+                ))
+            if outs is None:
+                first = next(iter(parts.values()))[1]
+                outs = [np.zeros((len(lanes_set), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
+                        for a in first]
             for sel, out in parts.values():
-                arr[sel] = np.asarray(out[j])
-            outs.append(arr)
+                for arr, a in zip(outs, out, strict=True):
+                    arr[sel] = np.asarray(a)
+            if self.lower is None:
+                break
+            theta = outs[0][todo, :k]
+            low = (theta < self.lower) & ~_on_bound(theta, self.lower, self.upper)
+            high = (theta > self.upper) & ~_on_bound(theta, self.lower, self.upper)
+            past = low | high
+            redo = np.flatnonzero(past.any(axis=1))
+            if len(redo) == 0:
+                break
+            lanes = todo[redo]
+            free[lanes] = np.where(past[redo], 0.0, free[lanes])
+            start[lanes] = np.where(low[redo], self.lower,
+                                    np.where(high[redo], self.upper, start[lanes]))
+            todo = lanes
         params, sse, sse_test, resid, jtj_inv, ok, rank = outs
         w = np.asarray(self.data.w)
         curve = np.maximum(np.asarray(self.data.curve), 0)
@@ -575,7 +601,7 @@ class StaticProblem:
                 cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test > 0)),
                 converged=ok[full] & self.baseline_converged,
                 extra={"params": params[full], "jtj_inv": jtj_inv[full],
-                       "full_rank": rank[full] == (np.sum(self.base_free, axis=1)
+                       "full_rank": rank[full] == (np.sum(free[full], axis=1)
                                                    + len(slots[i]) + int(trmask[i].sum())),
                        "residual": resid[full], "slots": slots[i],
                        "compliance": bool(implicit[i])},
@@ -583,13 +609,11 @@ class StaticProblem:
         return results
 
     def _shared_arrays(self):
-        """What every lane gathers from, on the device once: (θ0, x, y, w, fold, features,
-        which base constants are free)."""
+        """What every lane gathers from, on the device once: (x, y, w, fold, features)."""
         if getattr(self, "_shared", None) is None:
-            self._shared = (jnp.asarray(self.theta0), tuple(jnp.asarray(xi) for xi in self.data.x),
+            self._shared = (tuple(jnp.asarray(xi) for xi in self.data.x),
                             jnp.asarray(self.data.y), jnp.asarray(self.data.w),
-                            jnp.asarray(self.fold), jnp.asarray(self.features),
-                            jnp.asarray(self.base_free))
+                            jnp.asarray(self.fold), jnp.asarray(self.features))
         return self._shared
 
 
@@ -696,19 +720,19 @@ def lanes_per_call(n_samples: int) -> int:
     return min(CHUNK_LANES, 1 << (fit.bit_length() - 1))
 
 
-def _fit_lanes(spec, with_compliance, shared, muscle, fold, cols, colmask):
+def _fit_lanes(spec, with_compliance, shared, muscle, fold, cols, colmask, free, start):
     """Solve the lanes, in calls of :func:`lanes_per_call` lanes. Fewer lanes than that are
     padded to a power of two (repeating the last lane), at least ``MIN_LANES`` while that
     stays within ``MIN_LANE_SAMPLES``, so that the steps of a forward selection reuse a few
     compiled shapes; more are cut into calls of that many (:func:`pamid._fit._batch.
     map_lanes` pads only the last)."""
     n = len(muscle)
-    n_samples = shared[2].shape[1]
+    n_samples = shared[1].shape[1]
     chunk = lanes_per_call(n_samples)
     fewest = min(MIN_LANES, 1 << (max(1, MIN_LANE_SAMPLES // n_samples).bit_length() - 1))
     size = min(chunk, max(fewest, 1 << (n - 1).bit_length())) if n <= chunk else n
     idx = np.minimum(np.arange(size), n - 1)
-    lanes = (muscle[idx], fold[idx], cols[idx], colmask[idx])
+    lanes = (muscle[idx], fold[idx], cols[idx], colmask[idx], free[idx], start[idx])
     run = functools.partial(_fit_lanes_jit, spec, with_compliance)
     name = builtin_key(spec)
     if name is not None and len(lane_devices()) == 1:
@@ -740,11 +764,11 @@ def numerical_rank(jac, rtol: float = RANK_RTOL):
     return jnp.sum(sv > sv[0] * rtol)
 
 
-def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
+def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0):
     """One lane: the set's effect columns ``cols`` (masked by ``colmask``) fitted to
-    ``muscle``'s samples, all of them (``fold`` 0) or all but fold ``fold − 1``."""
-    theta0_all, x_all, y_all, w_all, fold_all, feat_all, free_all = shared
-    theta0 = theta0_all[muscle]
+    ``muscle``'s samples, all of them (``fold`` 0) or all but fold ``fold − 1``; the
+    model's constants start at ``theta0``, those where ``free`` is 0 held there."""
+    x_all, y_all, w_all, fold_all, feat_all = shared
     x = tuple(xi[muscle] for xi in x_all)
     y = y_all[muscle]
     held = (fold_all[muscle] == fold - 1) & (fold > 0)
@@ -756,7 +780,7 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
     n_tr = len(transforms())
     # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
     # linear slots'; masked constants stay at zero.
-    mask = jnp.concatenate([free_all[muscle], colmask])
+    mask = jnp.concatenate([free, colmask])
     sw = jnp.sqrt(w)
     lin = feats * colmask[None, n_tr:]
 
@@ -792,9 +816,9 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask):
     return params, sse, sse_test, resid_all, jtj_inv, ok, rank
 
 
-def _fit_lanes_impl(spec, with_compliance, shared, muscle, fold, cols, colmask):
+def _fit_lanes_impl(spec, with_compliance, shared, muscle, fold, cols, colmask, free, start):
     return jax.vmap(lambda *a: _lane(spec, with_compliance, shared, *a))(
-        muscle, fold, cols, colmask)
+        muscle, fold, cols, colmask, free, start)
 
 
 _fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))
