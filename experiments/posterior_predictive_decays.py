@@ -111,8 +111,8 @@ def run_case(name, coulomb_Nm, key, out):
                             "sensor": _r(math.sqrt(STEP**2 + STEP**2 / 12), 6)}
         rows.append(row)
         t, y = data.arrays(trial)
-        post.plot_predictive(
-            pred, i, out / f"{name}_trial{trial}.png", record=(t, y),
+        pamid.report.plot_decay_predictive(
+            post, pred, i, out / f"{name}_trial{trial}.png", record=(t, y),
             title=(f"{name} (T_c = {coulomb_Nm:g} N·m), trial {trial}: "
                    f"{coverage[i]:.1%} of fitted samples inside the 95% band"))
     return {

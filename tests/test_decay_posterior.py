@@ -111,6 +111,21 @@ def test_predictive_one_batched_call_shape_and_coverage(posterior):
     assert np.allclose(pred.time_s[:, 0], posterior.windows.t0_s)
 
 
+def test_predictive_figure_is_drawn_by_the_report(posterior, tmp_path):
+    # The figure lives with the reporting code (pamid.report), not on the result.
+    from matplotlib.figure import Figure
+
+    pred = posterior.predictive(jax.random.key(13), n_draws=50)
+    fig = pamid.report.plot_decay_predictive(posterior, pred, 1)
+    assert isinstance(fig, Figure) and list(tmp_path.iterdir()) == []
+    assert fig.axes[0].get_title().startswith(f"trial {posterior.trials[1]}: ")
+    record = (pred.time_s[1], pred.observed_rad[1])
+    assert pamid.report.plot_decay_predictive(posterior, pred, 0, tmp_path / "p.png",
+                                              title="trial 0", record=record) is None
+    assert [p.name for p in tmp_path.iterdir()] == ["p.png"]  # no temporary file left
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+
+
 def test_windows_start_on_a_sample_after_the_first_extremum():
     pairs = _pairs(jax.random.key(14))
     win = decay_windows(pairs)

@@ -42,14 +42,27 @@ def test_the_namespace_lists_everything_it_defines():
     assert public == set(pamid.report.__all__)
 
 
+#: Results of the decay workflows: no writing methods either (a decay posterior's figure is
+#: ``pamid.report.plot_decay_predictive``); not all of them have a ``to_dict()``.
+DECAY_RESULT_CLASSES = ("DecayPosterior", "DecayPredictive", "DecayReport", "DecayModelFit",
+                        "JointDecayFit", "TrajectoryFit")
+
+
+def _writing_methods(klass) -> list[str]:
+    return sorted(n for n in dir(klass) if n.startswith(WRITING) or n in ("to_json", "report"))
+
+
 @pytest.mark.parametrize("cls", RESULT_CLASSES)
 def test_result_classes_hold_results_only(cls):
     klass = getattr(pamid, cls)
-    writing = sorted(n for n in dir(klass)
-                     if n.startswith(WRITING) or n in ("to_json", "report"))
-    assert writing == []
+    assert _writing_methods(klass) == []
     assert callable(klass.to_dict)
     assert "plain" in klass.to_dict.__doc__  # says it is the plain-data view
+
+
+@pytest.mark.parametrize("cls", DECAY_RESULT_CLASSES)
+def test_decay_result_classes_hold_results_only(cls):
+    assert _writing_methods(getattr(pamid, cls)) == []
 
 
 def test_importing_report_loads_no_plotting_library():

@@ -277,10 +277,12 @@ def cmd_check_decays(args) -> int:
         stage(f"writing plots to {final_place(out)}", quiet)
         payload["plots"] = _plot(curves, rows, out, args.max_plots)
         if pred is not None:
+            from .._report._decays import plot_decay_predictive
+
             for i, trial in enumerate(posterior.trials[: args.max_plots]):
                 name = f"predictive_{trial}.png"
-                posterior.plot_predictive(pred, i, path=out / name,
-                                          title=f"Posterior predictive, trial {trial}")
+                plot_decay_predictive(posterior, pred, i, path=out / name,
+                                      title=f"Posterior predictive, trial {trial}")
                 payload["plots"].append(name)
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
     payload = json_ready(payload)  # JSON has no NaN: null

@@ -41,7 +41,8 @@ trial are pushed through :func:`pamid.simulate_oscillator` in ONE batched call (
 oscillator of shape (trials, draws)), Gaussian noise σ of each draw is added, and the 95 %
 band is the 2.5–97.5 % quantiles at every sample. When the model is right, about 95 % of
 the recorded samples fall inside it; Coulomb friction, which the viscous model lacks,
-shows as lower coverage and as residuals that grow late in the decay.
+shows as lower coverage and as residuals that grow late in the decay
+(:func:`pamid.report.plot_decay_predictive` draws it).
 """
 
 from __future__ import annotations
@@ -361,41 +362,6 @@ class DecayPosterior:
         time = self.windows.t0_s[:, None] + np.asarray(self.windows.data.x[0])
         return DecayPredictive(time, angle, mean, np.asarray(self.windows.data.y), mask,
                                np.moveaxis(band, 0, 1))
-
-    def plot_predictive(self, pred: DecayPredictive, i: int = 0, path=None,
-                        title: str | None = None, record=None):
-        """Recorded decay of trial ``i`` with the 95 % predictive band (top) and the
-        residuals about the posterior-mean prediction with the band (bottom). ``record``:
-        optionally the whole (time_s, angle_rad) of the trial, drawn faintly."""
-        import matplotlib.pyplot as plt
-
-        on = pred.mask[i]
-        t, y = pred.time_s[i, on], pred.observed_rad[i, on]
-        lo, hi = pred.band[i, 0, on], pred.band[i, 1, on]
-        centre = pred.mean_rad[i].mean(axis=0)[on]
-        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True,
-                                      gridspec_kw={"height_ratios": [2, 1]})
-        if record is not None:
-            ax.plot(record[0], np.degrees(record[1]), color="0.75", lw=0.6, label="record")
-        ax.fill_between(t, np.degrees(lo), np.degrees(hi), color="C1", alpha=0.35,
-                        label="95% posterior predictive")
-        ax.plot(t, np.degrees(y), ".", ms=1.2, color="C0", label="fitted samples")
-        ax.set_ylabel("angle [deg]")
-        ax.legend(loc="upper right", fontsize=8)
-        cov = pred.coverage()[i]
-        ax.set_title(title or f"trial {self.trials[i]}: {cov:.1%} of samples inside the band")
-        ax2.fill_between(t, np.degrees(lo - centre), np.degrees(hi - centre), color="C1",
-                         alpha=0.35)
-        ax2.plot(t, np.degrees(y - centre), ".", ms=1.2, color="C0")
-        ax2.axhline(0.0, color="k", lw=0.5)
-        ax2.set_ylabel("residual [deg]")
-        ax2.set_xlabel("time [s]")
-        fig.tight_layout()
-        if path is None:
-            return fig
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        return None
 
 
 def fit_decay_mcmc(
