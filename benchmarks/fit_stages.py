@@ -2,11 +2,13 @@
 
     .venv/bin/python benchmarks/fit_stages.py bench.csv [--intervals wald,profile] [--rounds 3]
 
-Stages, as the command runs them: import of the command (``pamid._cli``), building its
-argument parser, ``load_bench``, packing the muscles (``bench_to_fit_data``), the solve,
-the statistics and Wald intervals, the profile intervals, the JSON document (``to_dict``
-and ``json.dumps``). The first round includes compilation (the persistent compilation cache
-is used as the command uses it, ``PAMID_CACHE_DIR``); later rounds are warm. Prints one
+Stages, as the command runs them: import of the command (loading the ``pamid`` console
+script's entry point, ``pamid._cli``), building its argument parser (``pamid --help``
+through that entry point, its help text not shown), ``load_bench``, packing the muscles
+(``bench_to_fit_data``), the solve, the statistics and Wald intervals, the profile
+intervals, the JSON document (``to_dict`` and ``json.dumps``). The first round includes
+compilation (the disk caches are used as the command uses them, ``PAMID_CACHE_DIR``:
+``pamid.engine.use_disk_caches``); later rounds are warm. Prints one
 line per stage: wall and CPU time (all threads) of the first round, then the medians of the
 later rounds (CPU time is less disturbed by other processes on a shared machine).
 """
@@ -14,10 +16,13 @@ later rounds (CPU time is less disturbed by other processes on a shared machine)
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import statistics
 import sys
 import time
+from importlib.metadata import entry_points
 
 
 class Stages(dict):
@@ -39,24 +44,27 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args(argv)
 
+    (script,) = entry_points(group="console_scripts", name="pamid")
     t0 = time.perf_counter()
-    from pamid import _cli
-
+    console_main = script.load()  # imports the command's module, as the pamid script does
     t_import = time.perf_counter() - t0
+    argv = sys.argv
     t0 = time.perf_counter()
-    _cli._parser()
+    try:  # the parser is built, then prints its help and exits
+        sys.argv = ["pamid", "--help"]
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):
+            console_main()
+    finally:
+        sys.argv = argv
     t_parser = time.perf_counter() - t0
     print(f"import pamid._cli {t_import:8.3f} s   (modules loaded: {len(sys.modules)})")
     print(f"argument parser   {t_parser:8.3f} s")
 
-    from pamid._data._bench import load_bench
-    from pamid._fit import _intervals
-    from pamid._fit._api import bench_to_fit_data, fit_least_squares
-    from pamid._fit._least_squares import solve
-    from pamid._fit._least_squares import statistics as fit_statistics
-    from pamid._fit._spec import get_model
+    from pamid import bench_to_fit_data, fit_least_squares, load_bench
+    from pamid.engine import get_model, profile_intervals, solve, use_disk_caches, wald_intervals
+    from pamid.engine import statistics as fit_statistics
 
-    _cli._enable_compilation_cache()
+    use_disk_caches()
     intervals = tuple(s for s in args.intervals.split(",") if s)
     rounds = []
     for _ in range(args.rounds):
@@ -73,11 +81,11 @@ def main(argv=None) -> int:
         t["solve"] = t0
         t0 = clocks()
         sse, jtj_inv, _, n, _ = fit_statistics(spec, theta, data)
-        se, _, _, s2, dof = _intervals.wald(theta, jtj_inv, sse, n)
+        se, _, _, s2, dof = wald_intervals(theta, jtj_inv, sse, n)
         t["statistics + wald"] = t0
         if "profile" in intervals:
             t0 = clocks()
-            _intervals.profile(spec, data, theta, se, s2, sse, dof, jtj_inv=jtj_inv)
+            profile_intervals(spec, data, theta, se, s2, sse, dof, jtj_inv=jtj_inv)
             t["profile"] = t0
         t0 = clocks()
         result = fit_least_squares(bench, spec, intervals=intervals)

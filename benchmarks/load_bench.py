@@ -11,8 +11,8 @@ contender's alone (every child imports pandas and pamid first):
 
 * ``pandas.read_csv`` — the file into a DataFrame, nothing checked (the yardstick);
 * ``load_bench`` — pamid's loader (fast path for clean, simple CSV files);
-* ``load_bench, slow path`` — the same with the fast path switched off (the cell-by-cell
-  reader every file went through before), unless ``--skip-slow``;
+* ``load_bench, slow path`` — the same with the fast path switched off (``PAMID_FAST_CSV=0``:
+  the cell-by-cell reader every file went through before), unless ``--skip-slow``;
 * ``load_bench, bar`` — the file with its pressure in bar (``pressure_bar``), so that the
   exact decimal conversion of the pressure text is included.
 
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -35,10 +36,7 @@ CHILD = r"""
 import json, resource, sys, time, warnings
 import pandas as pd
 import pamid
-import pamid._data._csv as csv_reader
 mode, path = sys.argv[1], sys.argv[2]
-if mode == "slow":
-    csv_reader._FAST_CSV = False
 def rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 def current_mb():
@@ -77,11 +75,14 @@ def write_csv(n_muscles: int, path: Path, seed: int = 1) -> None:
 
 
 def run_child(mode: str, path: Path) -> dict:
+    # The slow path: pamid's public switch, the cell-by-cell reader for every CSV file.
+    env = dict(os.environ, PAMID_FAST_CSV="0" if mode == "slow" else "1")
     out = subprocess.run(
         [sys.executable, "-c", CHILD, mode, str(path)],
         check=True,
         capture_output=True,
         text=True,
+        env=env,
     )
     return json.loads(out.stdout.strip().splitlines()[-1])
 

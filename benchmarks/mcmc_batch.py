@@ -46,9 +46,10 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._fit._spec import SAROSI  # noqa: E402
-from pamid._io import write_text_atomic  # noqa: E402
-from pamid._sampling import _mcmc, _posterior  # noqa: E402
+from pamid import engine  # noqa: E402
+from pamid.io import write_text_atomic  # noqa: E402
+
+SAROSI = engine.get_model("sarosi")
 
 PROTOCOL = pamid.SarosiProtocol(min_force_N=10.0)
 TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
@@ -68,7 +69,7 @@ def make_data(m, seed=0):
 
 def start_ball(data, prior, log_prob):
     ls = pamid.fit_least_squares(data)
-    return _mcmc._initial_ball(jax.random.key(1), ls, prior, log_prob, data, W, 0.1)
+    return engine.initial_walkers(jax.random.key(1), ls, prior, log_prob, data, W, 0.1)
 
 
 def time_call(fn, n=2000):
@@ -86,11 +87,11 @@ def per_call(data, prior):
     start = start_ball(pamid.pack_muscles([((np.asarray(data.x[0][0]),
                                               np.asarray(data.x[1][0])),
                                              np.asarray(data.y[0]))]),
-                       prior, _mcmc._log_prob(SAROSI, prior, "normal", 4.0))[0, :16]
+                       prior, engine.walker_log_prob(SAROSI, prior, "normal", 4.0))[0, :16]
     x = tuple(np.asarray(a[0]) for a in data.x)
     y, w = np.asarray(data.y[0]), np.asarray(data.w[0])
-    f_np = _posterior.numpy_log_prob("sarosi", prior)
-    f_jax = _mcmc._walker_log_prob(SAROSI, prior, "normal", 4.0)
+    f_np = engine.numpy_log_prob("sarosi", prior)
+    f_jax = engine.ensemble_log_prob(SAROSI, prior, "normal", 4.0)
     xj, yj, wj = tuple(jnp.asarray(a) for a in x), jnp.asarray(y), jnp.asarray(w)
     zj = jnp.asarray(start)
     np.testing.assert_allclose(f_np(start, x, y, w), np.asarray(f_jax(zj, xj, yj, wj)),
@@ -106,17 +107,17 @@ def per_call(data, prior):
 def emcee_loop(data, start, prior, kind, n_steps, repeats):
     """Seconds per step of a loop of emcee samplers (kind: "jax" or "numpy")."""
     m = data.n_muscles
-    moves = [(emcee.moves.DEMove(), _mcmc.DE_FRACTION),
-             (emcee.moves.StretchMove(), 1 - _mcmc.DE_FRACTION)]
+    moves = [(emcee.moves.DEMove(), engine.DE_FRACTION),
+             (emcee.moves.StretchMove(), 1 - engine.DE_FRACTION)]
     if kind == "jax":
-        f = _mcmc._walker_log_prob(SAROSI, prior, "normal", 4.0)
+        f = engine.ensemble_log_prob(SAROSI, prior, "normal", 4.0)
         fns = []
         for i in range(m):
             xi = tuple(a[i] for a in data.x)
             fns.append(lambda z, xi=xi, i=i: np.asarray(f(jnp.asarray(z), xi, data.y[i],
                                                              data.w[i])))
     else:
-        f = _posterior.numpy_log_prob("sarosi", prior)
+        f = engine.numpy_log_prob("sarosi", prior)
         fns = []
         for i in range(m):
             xi = tuple(np.asarray(a[i]) for a in data.x)
@@ -138,10 +139,10 @@ def emcee_loop(data, start, prior, kind, n_steps, repeats):
 
 
 def stacked(data, start, prior, n_steps, repeats):
-    log_prob = _mcmc._log_prob(SAROSI, prior, "normal", 4.0)
+    log_prob = engine.walker_log_prob(SAROSI, prior, "normal", 4.0)
     t = time.perf_counter()
-    backend = _mcmc._StackedBackend(log_prob, jax.random.key(2), start, data,
-                                    _mcmc.DE_FRACTION)
+    backend = engine.StackedSampler(log_prob, jax.random.key(2), start, data,
+                                    engine.DE_FRACTION)
     backend.advance(200, THIN)
     first = time.perf_counter() - t
     runs = []
@@ -161,7 +162,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     sizes = (1, 10, 100) if args.quick else (1, 10, 100, 1000)
     repeats = 2 if args.quick else 3
-    prior = _posterior.default_prior(SAROSI)
+    prior = pamid.default_prior(SAROSI)
 
     env = {
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
@@ -188,7 +189,7 @@ def main(argv=None):
           f"{'jax/stacked':>11}  {'numpy/stacked':>13}  compile stacked / emcee+jax")
     for m in sizes:
         data = make_data(m, seed=m)
-        start = start_ball(data, prior, _mcmc._log_prob(SAROSI, prior, "normal", 4.0))
+        start = start_ball(data, prior, engine.walker_log_prob(SAROSI, prior, "normal", 4.0))
         n_steps = {1: 2000, 10: 1000}.get(m, 200)
         if args.quick:
             n_steps = max(200, n_steps // 2)
@@ -214,7 +215,7 @@ def main(argv=None):
                                                              r["emcee_numpy_s_per_step"])
                                for r in rows) else "mixed"
     print(f"Faster at every M: {fastest}.  fit_mcmc(sampler='auto') uses "
-          f"'{_mcmc.AUTO_SAMPLER}'.")
+          f"'{engine.AUTO_SAMPLER}'.")
     if args.json:
         write_text_atomic(args.json, json.dumps({"environment": env, "per_call": calls,
                                                  "per_step": rows}, indent=2) + "\n")

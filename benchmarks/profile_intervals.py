@@ -5,12 +5,12 @@
 
 For each noise level, N virtual muscles (Sárosi Table 3-1 × (1 + 0.03·normal), Sárosi's
 protocol, load-cell noise ``--noise`` N) are fitted once; then the profile intervals of
-``pamid._fit._intervals.profile`` (this tree) and of the same function at git revision
-``--rev`` (its file read with ``git show``, run beside this tree's solver) are computed on
-the same fit. Printed: the largest |difference| of an interval end relative to the width of
-that interval (and the median), how many ends each left unconverged, and the time of each
-(first call after ``jax.clear_caches()``, compilation included, and the median of
-``--repeats`` warm calls).
+``pamid.engine.profile_intervals`` (this tree; ``profile`` of ``pamid/_fit/_intervals.py``)
+and of the same function at git revision ``--rev`` (that file read with ``git show``, run
+beside this tree's solver) are computed on the same fit. Printed: the largest |difference|
+of an interval end relative to the width of that interval (and the median), how many ends
+each left unconverged, and the time of each (first call after ``jax.clear_caches()``,
+compilation included, and the median of ``--repeats`` warm calls).
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ import jax
 import numpy as np
 
 import pamid
-from pamid._fit import _intervals
-from pamid._fit._api import fit_least_squares
+from pamid import fit_least_squares
+from pamid.engine import profile_intervals
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -77,8 +77,8 @@ def main(argv=None) -> int:
         s2 = fit.sse / np.maximum(fit.dof, 1)
         jtj_inv = fit.covariance / s2[:, None, None]
         t_new, new = _time_pamid(
-            lambda: _intervals.profile(fit.spec, data, fit.theta, fit.se, s2, fit.sse, fit.dof,
-                                       jtj_inv=jtj_inv), args.repeats)
+            lambda: profile_intervals(fit.spec, data, fit.theta, fit.se, s2, fit.sse, fit.dof,
+                                      jtj_inv=jtj_inv), args.repeats)
         t_old, ref = _time_pamid(
             lambda: old(fit.spec, data, fit.theta, fit.se, s2, fit.sse, fit.dof), args.repeats)
         (new_first, new_warm), (old_first, old_warm) = (

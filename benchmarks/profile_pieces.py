@@ -3,16 +3,21 @@
     .venv/bin/python benchmarks/profile_pieces.py [--n 1000] [--repeats 7]
 
 Times (median of warm calls, after one compiling call) at N muscles of virtual-bench data:
-the default Sárosi solve (``pamid/_fit/_gauss_newton.py``) and its parts (the start: subsample,
-coarse scan, parabolic refinement; one Gauss–Newton pass over the samples; the iterations),
-the previous default (the 24-point variable-projection start and its parts, then optimistix
-Gauss–Newton), batched LAPACK calls of the shapes pamid uses, and, for scale, a hand-written
-batched Gauss–Newton (analytic Jacobian, normal equations, fixed step count) in JAX and in
-NumPy from the same start: a yardstick for what the hardware can do.
+the default Sárosi solve (``pamid/_fit/_gauss_newton.py``) and its parts, through the public
+kernels of ``pamid.engine`` (the start; the start scanning every sample instead of a
+subsample, and without its parabolic refinement; the iterations, and one full pass over the
+samples as two iterations less one), the previous default (the 24-point variable-projection
+start and its parts, built from ``sarosi_fit_at_a3``, then optimistix Gauss–Newton:
+``solve`` of the Sárosi spec without its written-out kernels), batched LAPACK calls of the
+shapes pamid uses, and, for scale, a hand-written batched Gauss–Newton (analytic Jacobian,
+normal equations, fixed step count) in JAX and in NumPy from the same start: a yardstick for
+what the hardware can do.
 It also checks the scaling of ``bench_to_fit_data`` (from a CSV loaded with ``load_bench``),
 and, at ``--cores-n`` muscles (default 10,000), how batches use the CPU: the solve with one
-thread per core against one thread, a chunk built by a gather against a slice, and the Sárosi
-statistics from sums against the Jacobian/QR/SVD path. ``--only-cores`` runs that part alone;
+thread per core against one thread (this thread held to one core, as ``taskset -c 0`` would:
+pamid then feeds the device from one thread), a chunk built by a gather against a slice, and
+the Sárosi statistics from sums against the Jacobian/QR/SVD path (``statistics`` of the spec
+without its written-out kernels). ``--only-cores`` runs that part alone;
 run it under ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` for the sharded solve on
 two virtual devices.
 """
@@ -20,6 +25,8 @@ two virtual devices.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import os
 import statistics
 import sys
 import tempfile
@@ -35,10 +42,25 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fit_batch  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._fit import _gauss_newton as gn  # noqa: E402
-from pamid._fit import _variable_projection as vp  # noqa: E402
-from pamid._fit._least_squares import _solve_batch, solve  # noqa: E402
-from pamid._fit._spec import SAROSI  # noqa: E402
+from pamid.engine import (  # noqa: E402
+    get_model,
+    sarosi_fast_start,
+    sarosi_fit_at_a3,
+    sarosi_gauss_newton,
+    sarosi_variable_projection_start,
+    solve,
+)
+from pamid.engine import statistics as fit_statistics  # noqa: E402
+
+SAROSI = get_model("sarosi")
+# Without its written-out kernels: solve() runs optimistix's Gauss–Newton (the previous
+# default), statistics() the Jacobian, QR and SVD per lane.
+SAROSI_GENERIC = dataclasses.replace(SAROSI, fast_path=None)
+# The variable-projection start's grid in s = a3·κ_span (pamid/_fit/_variable_projection.py).
+VP_GRID = np.concatenate([-np.geomspace(30.0, 0.05, 20), np.geomspace(0.05, 3.0, 4)])
+# Lanes per compiled call of the Sárosi kernels on the CPU (benchmarks/README.md, "Figures
+# that used to live in docstrings", (c)).
+CPU_CHUNK_LANES = 512
 
 
 def timeit(fn, repeats):
@@ -57,8 +79,8 @@ def grid_scan(x, y, w):
 
     def one(p, k, y, w):
         span = jnp.max(jnp.where(w > 0, jnp.abs(k), 0.0))
-        grid = vp._S_GRID / span
-        return jax.vmap(lambda a: vp._linear_solve(a, p, k, y, w, accurate=False)[1])(grid)
+        grid = VP_GRID / span
+        return jax.vmap(lambda a: sarosi_fit_at_a3(a, p, k, y, w, accurate=False)[1])(grid)
 
     return jax.vmap(one)(p, k, y, w)
 
@@ -66,7 +88,7 @@ def grid_scan(x, y, w):
 @jax.jit
 def final_qr(a3, x, y, w):
     p, k = x
-    return jax.vmap(lambda a, p, k, y, w: vp._linear_solve(a, p, k, y, w)[0])(a3, p, k, y, w)
+    return jax.vmap(lambda a, p, k, y, w: sarosi_fit_at_a3(a, p, k, y, w)[0])(a3, p, k, y, w)
 
 
 @jax.jit
@@ -119,28 +141,26 @@ def handwritten_gn_numpy(theta, p, k, y, w):
 def cores_and_statistics(n, rep):
     """The solve on one thread per core and on one; a chunk by gather and by slice; the
     written-out Sárosi statistics and the generic ones."""
-    from pamid._fit import _batch
-    from pamid._fit._least_squares import _statistics, statistics
-
     data = fit_batch.make_data(n)[2]
     devices = jax.local_devices()
     print(f"\nN = {n}: chunks, threads and statistics ({len(devices)} device(s): {devices})")
     t_cores = timeit(lambda: solve(SAROSI, data), rep)
     if len(devices) > 1:
         print(f"  solve, sharded over {len(devices)} devices: {fit_batch.fmt_s(t_cores)}")
-    original = _batch._cpu_workers
-    _batch._cpu_workers = lambda: 1
+    # pamid feeds a CPU device from one thread per core this thread may use
+    # (docs/devices.md): held to one core, it feeds it from one.
+    cores = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {min(cores)})
     try:
         with pamid.use_devices(devices[:1]):
             t_one = timeit(lambda: solve(SAROSI, data), rep)
-        _batch._cpu_workers = lambda: original()
-        with pamid.use_devices(devices[:1]):
-            t_threads = timeit(lambda: solve(SAROSI, data), rep)
     finally:
-        _batch._cpu_workers = original
-    print(f"  solve on one device, one thread per core ({original()}): "
+        os.sched_setaffinity(0, cores)
+    with pamid.use_devices(devices[:1]):
+        t_threads = timeit(lambda: solve(SAROSI, data), rep)
+    print(f"  solve on one device, one thread per core ({len(cores)}): "
           f"{fit_batch.fmt_s(t_threads)}; one thread: {fit_batch.fmt_s(t_one)}")
-    chunk = gn.CPU_CHUNK_LANES
+    chunk = CPU_CHUNK_LANES
     parts = (data.x, data.y, data.w)
     idx = np.arange(chunk)
     t_gather = timeit(lambda: jax.block_until_ready(jax.tree.map(lambda a: a[idx], parts)), rep)
@@ -148,21 +168,14 @@ def cores_and_statistics(n, rep):
         lambda: jax.block_until_ready(jax.tree.map(lambda a: a[:chunk], parts)), rep
     )
     part = jax.tree.map(lambda a: a[:chunk], parts)
-    t_call = timeit(lambda: jax.block_until_ready(gn.sarosi_gauss_newton(*part)), rep)
+    t_call = timeit(lambda: jax.block_until_ready(sarosi_gauss_newton(*part)), rep)
     print(f"  one chunk of {chunk} lanes: gathered {fit_batch.fmt_s(t_gather)}, sliced "
           f"{fit_batch.fmt_s(t_slice)}; its solve {fit_batch.fmt_s(t_call)}")
     theta = solve(SAROSI, data)[0]
-    fast = statistics(SAROSI, theta, data)
-    generic = _batch.map_lanes(
-        lambda t, x, y, w: _statistics(SAROSI, t, x, y, w), jnp.asarray(theta), *parts
-    )
-    t_fast = timeit(lambda: statistics(SAROSI, theta, data), rep)
-    t_generic = timeit(
-        lambda: _batch.map_lanes(
-            lambda t, x, y, w: _statistics(SAROSI, t, x, y, w), jnp.asarray(theta), *parts
-        ),
-        rep,
-    )
+    fast = fit_statistics(SAROSI, theta, data)
+    generic = fit_statistics(SAROSI_GENERIC, theta, data)
+    t_fast = timeit(lambda: fit_statistics(SAROSI, theta, data), rep)
+    t_generic = timeit(lambda: fit_statistics(SAROSI_GENERIC, theta, data), rep)
     inv_diff = np.max(np.abs(np.asarray(fast[1]) - np.asarray(generic[1]))
                       / np.abs(np.asarray(generic[1])))
     print(f"  statistics: from sums {fit_batch.fmt_s(t_fast)}, Jacobian/QR/SVD per lane "
@@ -203,68 +216,53 @@ def main(argv=None) -> int:
     )
     add(
         "  start alone (subsample + coarse scan + refinement)",
-        timeit(lambda: jax.block_until_ready(gn.sarosi_fast_start(x, y, w)), rep),
+        timeit(lambda: jax.block_until_ready(sarosi_fast_start(x, y, w)), rep),
     )
-    sub = jax.jit(lambda x, y, w: gn._subsample(x + (y,), w, gn.START_SAMPLES))
-    add("    subsample alone", timeit(lambda: jax.block_until_ready(sub(x, y, w)), rep))
+    add(
+        "    start on every sample (no subsample)",
+        timeit(lambda: jax.block_until_ready(sarosi_fast_start(x, y, w, n_sub=y.shape[1])),
+               rep),
+    )
     add(
         "    scan alone (no refinement)",
-        timeit(lambda: jax.block_until_ready(gn.sarosi_fast_start(x, y, w, n_refine=0)), rep),
+        timeit(lambda: jax.block_until_ready(sarosi_fast_start(x, y, w, n_refine=0)), rep),
     )
-    start = gn.sarosi_fast_start(x, y, w)
+    start = sarosi_fast_start(x, y, w)
     add(
         "  iterations from that start",
-        timeit(lambda: jax.block_until_ready(gn.sarosi_gauss_newton(x, y, w, start)), rep),
+        timeit(lambda: jax.block_until_ready(sarosi_gauss_newton(x, y, w, start)), rep),
     )
-    steps = np.asarray(gn.sarosi_gauss_newton(x, y, w, start)[2])
+    steps = np.asarray(sarosi_gauss_newton(x, y, w, start)[2])
     print(f"    (passes over the data: max {steps.max()}, median {np.median(steps):g})")
-    one_pass = jax.jit(
-        lambda t, s, p, k, y, w: gn._pass(t, s, p, k, y, w, jnp.sqrt(w), 1e-10, 1e-10, True)
-    )
-    add(
-        "    one full pass over the samples (22 sums + 1 maximum)",
-        timeit(lambda: jax.block_until_ready(one_pass(start, start, *x, y, w)), rep),
-    )
+    # One more pass: two iterations from the start less one (the second is a full pass:
+    # no lane's first step is below the tolerance), the step's 6×6 solve included.
+    two, one = (timeit(lambda k=k: jax.block_until_ready(
+        sarosi_gauss_newton(x, y, w, start, max_steps=k)), rep) for k in (2, 1))
+    add("    one full pass over the samples (22 sums + 1 maximum), and its step", two - one)
     add(
         "previous default: VP start + optimistix GN",
         timeit(
-            lambda: jax.block_until_ready(
-                _solve_batch(
-                    SAROSI,
-                    "gauss-newton",
-                    vp.sarosi_variable_projection_start(x, y, w),
-                    x,
-                    y,
-                    w,
-                    100,
-                    1e-10,
-                    1e-10,
-                )
-            ),
+            lambda: solve(SAROSI_GENERIC, data,
+                          theta0=sarosi_variable_projection_start(x, y, w)),
             rep,
         ),
     )
     add(
         "  VP start (grid 24 + 6 refinements + QR)",
-        timeit(lambda: jax.block_until_ready(vp.sarosi_variable_projection_start(x, y, w)), rep),
+        timeit(lambda: jax.block_until_ready(sarosi_variable_projection_start(x, y, w)), rep),
     )
     add(
         "    grid scan alone (24 normal-equation solves)",
         timeit(lambda: jax.block_until_ready(grid_scan(x, y, w)), rep),
     )
-    theta0 = vp.sarosi_variable_projection_start(x, y, w)
+    theta0 = sarosi_variable_projection_start(x, y, w)
     add(
         "    final accurate QR solve alone",
         timeit(lambda: jax.block_until_ready(final_qr(theta0[:, 2], x, y, w)), rep),
     )
     add(
         "  Gauss-Newton (optimistix) from the VP start",
-        timeit(
-            lambda: jax.block_until_ready(
-                _solve_batch(SAROSI, "gauss-newton", theta0, x, y, w, 100, 1e-10, 1e-10)
-            ),
-            rep,
-        ),
+        timeit(lambda: solve(SAROSI_GENERIC, data, theta0=theta0), rep),
     )
     a = jnp.asarray(np.random.default_rng(0).standard_normal((n, y.shape[1], 6)))
     add(

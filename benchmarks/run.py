@@ -220,12 +220,12 @@ def _emcee_numpy(data, start, prior, n_steps, thin):
     import emcee
     import numpy as np
 
-    from pamid._sampling import _mcmc, _posterior
+    from pamid import engine
 
-    f = _posterior.numpy_log_prob("sarosi", prior)
+    f = engine.numpy_log_prob("sarosi", prior)
     moves = [
-        (emcee.moves.DEMove(), _mcmc.DE_FRACTION),
-        (emcee.moves.StretchMove(), 1 - _mcmc.DE_FRACTION),
+        (emcee.moves.DEMove(), engine.DE_FRACTION),
+        (emcee.moves.StretchMove(), 1 - engine.DE_FRACTION),
     ]
     samplers, states = [], []
     for i in range(data.n_muscles):
@@ -253,7 +253,7 @@ def _ess(chain, thin):
     (M, draws, W, d), with emcee's integrated-time estimator (pamid's copy)."""
     import numpy as np
 
-    from pamid._sampling._mcmc import integrated_time
+    from pamid.engine import integrated_time
 
     tau_draws = np.maximum(integrated_time(chain), 1.0)  # (M, d), in draws
     n = chain.shape[1] * chain.shape[2]
@@ -355,18 +355,19 @@ def worker(spec: dict) -> dict:
     elif bench == "mcmc":
         import mcmc_batch
 
-        from pamid._fit._spec import SAROSI
-        from pamid._sampling import _mcmc, _posterior
+        import pamid
+        from pamid import engine
 
-        prior = _posterior.default_prior(SAROSI)
-        log_prob = _mcmc._log_prob(SAROSI, prior, "normal", 4.0)
+        sarosi = engine.get_model("sarosi")
+        prior = pamid.default_prior(sarosi)
+        log_prob = engine.walker_log_prob(sarosi, prior, "normal", 4.0)
         data = mcmc_batch.make_data(n, seed=n)
         start = mcmc_batch.start_ball(data, prior, log_prob)
         out["rss_setup_mb"] = _peak_rss_mb()
         n_steps, thin, walkers = spec["mcmc_steps"], mcmc_batch.THIN, mcmc_batch.W
         if side == "pamid":
-            backend = _mcmc._StackedBackend(
-                log_prob, jax.random.key(2), start, data, _mcmc.DE_FRACTION
+            backend = engine.StackedSampler(
+                log_prob, jax.random.key(2), start, data, engine.DE_FRACTION
             )
             # Chunks of 200 steps, as fit_mcmc runs them (the chunk length is static: one
             # compilation); the first chunk compiles and serves as burn-in.
@@ -525,10 +526,9 @@ def make_diagnose_data(n: int, tmp: Path) -> Path:
 def _diagnose_first_step(path):
     """The problem and the first selection step's sets (baseline + every candidate)."""
     import pamid
-    from pamid._diagnose._static import StaticProblem
-    from pamid._fit._spec import SAROSI
+    from pamid.engine import StaticDiagnosisProblem, get_model
 
-    problem = StaticProblem(pamid.load_bench(path), SAROSI)
+    problem = StaticDiagnosisProblem(pamid.load_bench(path), get_model("sarosi"))
     return problem, [(), *[(c,) for c in problem.candidate_names]]
 
 
@@ -764,7 +764,7 @@ def _diagnose_lines(row) -> list[str]:
     selected = ", ".join(row["diagnose_selected"]) or "nothing"
     lines = []
     if row.get("lanes_not_converged"):
-        from pamid._diagnose._static import MAX_ITER
+        from pamid.engine import DIAGNOSIS_MAX_STEPS as MAX_ITER
 
         where = ", ".join(f"{k} on {v} muscle{'s' * (v > 1)}"
                           for k, v in row["lanes_not_converged"].items())

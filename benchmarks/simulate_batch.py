@@ -6,7 +6,7 @@
 
 What is measured
 ----------------
-1. Integrator choice for the lifting mass (Sárosi eq. 2.2, :mod:`pamid._sim._lifting_mass`).
+1. Integrator choice for the lifting mass (Sárosi eq. 2.2, :func:`pamid.simulate_lifting_mass`).
    Reference: ``solve_ivp(method="DOP853", rtol=1e-10, atol=1e-12)`` per run. Cases: the
    Fig. 3-6 run (400 kPa, 50 kg, x0 = 50 mm, ζ of pamid's default loop, 5 s at 1 kHz), and
    a batch of runs with pressures 300–500 kPa, loads 30–70 kg, released at rest within
@@ -15,7 +15,7 @@ What is measured
    ``ACCURACY_M``): fixed-step RK4 in ``lax.scan`` (1 step per 1 ms sample), diffrax Tsit5
    with a PIDController, diffrax Kvaerno5 (implicit) with a PIDController; all with output
    on the 1 kHz grid. Compile time (first call) apart from the run (median of warm calls).
-2. Decays of the linear oscillator (:func:`pamid._sim._oscillator.simulate_oscillator`):
+2. Decays of the linear oscillator (:func:`pamid.simulate_oscillator`):
    N = 1, 1000, 10 000 decays of 4 s with output at 1 kHz (4001 samples), random ζ in
    [0.02, 0.2], f_n in [1, 4] Hz, J = 0.46 kg·m², release from 3°–9° at rest; the angle is
    kept (what an encoder gives). pamid batched — ``method="exact"`` (the default: the sampled
@@ -55,19 +55,15 @@ import scipy  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
 import pamid  # noqa: E402
-from pamid._sim._lifting_mass import (  # noqa: E402
-    LiftingMass,
-    _rhs,
-    default_zeta,
-    lifting_mass_equilibrium,
-    simulate_lifting_mass,
-)
-from pamid._sim._oscillator import (  # noqa: E402
+from pamid import (  # noqa: E402
     DampedOscillator,
-    batch_apply,
+    LiftingMass,
+    lifting_mass_equilibrium,
     oscillator_response,
+    simulate_lifting_mass,
     simulate_oscillator,
 )
+from pamid.sarosi import default_zeta, lifting_mass_damping, lifting_mass_force  # noqa: E402
 
 ACCURACY_M = 1e-9  # lifting mass: max |s − s_ref| every candidate must meet (0.01 mm encoder)
 REF = {"method": "DOP853", "rtol": 1e-10, "atol": 1e-12}
@@ -133,8 +129,15 @@ def lifting_reference(model, x0, ts, n):
     return out
 
 
+def lifting_rhs(model, y):
+    """Eq. 2.2 for one run, state y = (s, ds/dt): pamid's spring force and damping."""
+    s, v = y[0], y[1]
+    force = lifting_mass_force(model, s) - lifting_mass_damping(model, s) * v
+    return jnp.stack([v, force / model.mass_kg - model.gravity_m_per_s2])
+
+
 def diffrax_lifting(solver, rtol, atol, ts):
-    term = diffrax.ODETerm(lambda t, y, m: _rhs(m)(y))
+    term = diffrax.ODETerm(lambda t, y, m: lifting_rhs(m, y))
     saveat = diffrax.SaveAt(ts=jnp.asarray(ts))
     controller = diffrax.PIDController(rtol=rtol, atol=atol)
 
@@ -155,7 +158,9 @@ def diffrax_lifting(solver, rtol, atol, ts):
             )
             return sol.ys[:, 0], sol.stats["num_steps"]
 
-        return batch_apply(one, model, x0)
+        # One run per lane: the model's fields broadcast to the runs.
+        runs = jax.tree.map(lambda a: jnp.broadcast_to(a, x0.shape), model)
+        return jax.vmap(one)(runs, x0)
 
     return run
 

@@ -18,6 +18,7 @@ runs out of passes costs a batch of 1000 regular ones.
 from __future__ import annotations
 
 import argparse
+import inspect
 import statistics
 import time
 
@@ -26,8 +27,13 @@ import jax.numpy as jnp
 import numpy as np
 
 import pamid
-from pamid._fit import _gauss_newton as gn
+from pamid import FitData
+from pamid.engine import get_model, sarosi_fast_start, sarosi_gauss_newton, solve
 
+# The start's default settings: the defaults of sarosi_fast_start.
+START_GRID, START_SAMPLES, START_REFINE = (
+    inspect.signature(sarosi_fast_start).parameters[name].default
+    for name in ("grid", "n_sub", "n_refine"))
 TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
 DENSE_GRID = tuple(
     float(s) for s in np.concatenate([-np.geomspace(60.0, 0.02, 40), np.geomspace(0.02, 6.0, 12)])
@@ -82,19 +88,19 @@ def main(argv=None) -> int:
     }
     reference = {}
     for name, d in sets.items():
-        start = gn.sarosi_fast_start(d.x, d.y, d.w, grid=DENSE_GRID, n_sub=400, n_refine=10)
-        theta, ok, _ = gn.sarosi_gauss_newton(d.x, d.y, d.w, start)
+        start = sarosi_fast_start(d.x, d.y, d.w, grid=DENSE_GRID, n_sub=400, n_refine=10)
+        theta, ok, _ = sarosi_gauss_newton(d.x, d.y, d.w, start)
         reference[name] = (sse(theta, d), np.asarray(ok))
         print(f"reference, {name}: {np.mean(ok):.1%} converged", flush=True)
 
-    default = (gn.START_GRID, gn.START_SAMPLES, gn.START_REFINE)
+    default = (START_GRID, START_SAMPLES, START_REFINE)
     settings = {
-        f"default: grid {len(gn.START_GRID)}, {gn.START_SAMPLES} samples, "
-        f"{gn.START_REFINE} refinements": default,
-        "grid 15, 128 samples, 4 refinements": (gn.START_GRID, 128, 4),
-        "grid 15, 32 samples, 4 refinements": (gn.START_GRID, 32, 4),
+        f"default: grid {len(START_GRID)}, {START_SAMPLES} samples, "
+        f"{START_REFINE} refinements": default,
+        "grid 15, 128 samples, 4 refinements": (START_GRID, 128, 4),
+        "grid 15, 32 samples, 4 refinements": (START_GRID, 32, 4),
         "grid 12, 64 samples, 4 refinements": (grid(9, 3), 64, 4),
-        "grid 15, 64 samples, 2 refinements": (gn.START_GRID, 64, 2),
+        "grid 15, 64 samples, 2 refinements": (START_GRID, 64, 2),
     }
     print(f"\n{n} muscles per data set; cells: worse SSE / not converged / passes median, max")
     names = list(sets)
@@ -102,8 +108,8 @@ def main(argv=None) -> int:
     rows = []
     for label, (g, n_sub, n_refine) in settings.items():
         fit = jax.jit(
-            lambda x, y, w, g=g, n_sub=n_sub, n_refine=n_refine: gn.sarosi_gauss_newton(
-                x, y, w, gn.sarosi_fast_start(x, y, w, grid=g, n_sub=n_sub, n_refine=n_refine)
+            lambda x, y, w, g=g, n_sub=n_sub, n_refine=n_refine: sarosi_gauss_newton(
+                x, y, w, sarosi_fast_start(x, y, w, grid=g, n_sub=n_sub, n_refine=n_refine)
             )
         )
         bench = sets["benchmark"]
@@ -134,11 +140,8 @@ def main(argv=None) -> int:
 def straggler_cost(hard):
     """What one muscle that runs out of passes costs a batch: 1000 benchmark muscles alone,
     and with one such muscle added (``solve``, default settings, median of 5 warm calls)."""
-    from pamid._fit._batch import FitData
-    from pamid._fit._least_squares import solve
-    from pamid._fit._spec import SAROSI
-
-    _, ok, steps = (np.asarray(a) for a in gn.sarosi_gauss_newton(hard.x, hard.y, hard.w))
+    sarosi = get_model("sarosi")
+    _, ok, steps = (np.asarray(a) for a in sarosi_gauss_newton(hard.x, hard.y, hard.w))
     slow = np.flatnonzero(~ok & (steps == steps.max()))
     if slow.size == 0:
         print("\nno muscle of the hard set ran out of passes")
@@ -151,11 +154,11 @@ def straggler_cost(hard):
     ))
     print("\nwhat one muscle that runs out of passes costs a batch (solve, median of 5):")
     for label, data in (("1000 benchmark muscles", regular), ("the same + 1 such muscle", mixed)):
-        solve(SAROSI, data)
+        solve(sarosi, data)
         walls = []
         for _ in range(5):
             t0 = time.perf_counter()
-            _, ok, steps = solve(SAROSI, data)
+            _, ok, steps = solve(sarosi, data)
             walls.append(time.perf_counter() - t0)
         print(f"  {label}: {1e3 * statistics.median(walls):.1f} ms, "
               f"{int(ok.sum())}/{ok.size} converged, largest number of passes {steps.max()}")

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 import pamid
-from pamid._fit._api import bench_to_fit_data, fit_least_squares
-from pamid._fit._spec import MODELS
+from pamid import bench_to_fit_data, fit_least_squares
+from pamid.engine import get_model, model_names
 
 ROOT = Path(__file__).resolve().parents[1]
 FILES = [(ROOT.parent / "shared/data/martens_dmsp10_250.csv", {"l0_mm": 250.0}),
@@ -65,7 +65,7 @@ def scipy_sarosi(bench) -> np.ndarray:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--models", default=",".join(MODELS))
+    parser.add_argument("--models", default=",".join(model_names()))
     parser.add_argument("--no-scipy", action="store_true")
     args = parser.parse_args()
     warnings.simplefilter("ignore")
@@ -77,7 +77,7 @@ def main() -> None:
             continue
         bench = pamid.load_bench(path, **options)
         for model in args.models.split(","):
-            if any(c not in bench.frame for c in MODELS[model].columns):
+            if any(c not in bench.frame for c in get_model(model).columns):
                 continue
             sse, status, seconds = {}, {}, {}
             for k in STARTS:

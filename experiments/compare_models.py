@@ -9,8 +9,8 @@ Data (next to the repository, skipped when absent; never copied into it):
 * ``../shared/data/aarl_festo10mm_isometric.csv``: the AARL isometric tests of cut Festo
   10 mm tube, 6 muscles × 12 trials; whole trials are held out.
 
-For each file every model of ``pamid._fit._spec.MODELS`` (whatever is registered when the
-script runs) is fitted to every muscle in one batched solve per model, with its
+For each file every model of ``pamid.engine.model_names()`` (whatever is registered when
+the script runs) is fitted to every muscle in one batched solve per model, with its
 cross-validation refits as weighted lanes (:func:`pamid.compare_models`), and
 ranked per muscle by CV RMSE and by BIC = n·ln(SSE/n) + p·ln n. Writes, per file,
 ``compare.json``, one PNG of every model against the data per muscle and ``cv_rmse.png``,
@@ -30,10 +30,7 @@ from pathlib import Path
 
 import pamid
 from pamid import compare_models
-
-# The registry of models: no public name yet (tests/test_public_api.py lists this script as
-# an exception).
-from pamid._fit._spec import MODELS
+from pamid.engine import model_names
 from pamid.io import write_text_atomic
 from pamid.report import comparison_table, write_comparison_plots
 
@@ -83,7 +80,7 @@ def main(argv=None) -> int:
     def progress(msg: str) -> None:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    print(f"registered models: {', '.join(MODELS)}")
+    print(f"registered models: {', '.join(model_names())}")
     results, seconds = {}, {}
     for filename, options in FILES:
         path = DATA / filename
@@ -111,7 +108,7 @@ def main(argv=None) -> int:
         return 0
     table = markdown(results)
     write_text_atomic(args.out / "table.md", table + "\n")
-    summary = {"models": list(MODELS), "seconds": seconds,
+    summary = {"models": list(model_names()), "seconds": seconds,
                "files": {k: {"muscles": v["muscles"], "skipped": v["skipped"]}
                          for k, v in results.items()}}
     write_text_atomic(args.out / "summary.json", json.dumps(summary, indent=2) + "\n")

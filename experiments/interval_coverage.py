@@ -43,11 +43,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pamid  # noqa: E402
-from pamid._data._curves import find_curves  # noqa: E402
-from pamid._fit import _correlated, _intervals  # noqa: E402
-from pamid._fit._batch import FitData  # noqa: E402
-from pamid._fit._least_squares import solve, statistics  # noqa: E402
-from pamid._fit._spec import get_model  # noqa: E402
+from pamid import FitData  # noqa: E402
+from pamid import engine as eng  # noqa: E402
+from pamid.engine import find_curves, get_model, solve, statistics  # noqa: E402
 from pamid.io import write_text_atomic  # noqa: E402
 from pamid.sarosi import table_3_1  # noqa: E402
 
@@ -98,7 +96,7 @@ def truth(model: str, frame):
 def noise(key, kind: str, curve: np.ndarray, m: int, sigma: float) -> np.ndarray:
     """(m, n) noise, independent between curves (rows of a curve are contiguous)."""
     if kind.startswith("ar"):
-        return _correlated.ar1_noise(key, curve, m, sigma, float(kind[2:]))
+        return eng.ar1_noise(key, curve, m, sigma, float(kind[2:]))
     # smooth: Σ_k c_k cos(π k u) per curve, u the position within the curve (0 … 1)
     n = len(curve)
     start = np.r_[True, curve[1:] != curve[:-1]]
@@ -135,36 +133,36 @@ def run_setting(design, model, kind, m, n_boot, boot_m, seed, cache):
     sse, jtj_inv, _, n_rows, full = statistics(spec, theta, data)
     ok = np.asarray(conv) & np.asarray(full)
     res = {}
-    _, lo, hi, _, _ = _intervals.wald(theta, jtj_inv, sse, n_rows)
+    _, lo, hi, _, _ = eng.wald_intervals(theta, jtj_inv, sse, n_rows)
     res["wald"] = coverage(lo, hi, theta_true, ok)
-    jac_r = _correlated.jacobian_residuals(spec, theta, data)
+    jac_r = eng.jacobian_residuals(spec, theta, data)
     trials = np.broadcast_to(trial, (m, n))
     curves_b = np.broadcast_to(curve, (m, n))
-    rho, _, _ = _correlated.lag1_autocorrelation(jac_r[1], curves_b)
-    hac = _correlated.correlated_intervals(spec, data, theta, "hac", trials, jac_r=jac_r)
+    rho, _, _ = eng.lag1_autocorrelation(jac_r[1], curves_b)
+    hac = eng.correlated_intervals(spec, data, theta, "hac", trials, jac_r=jac_r)
     res["hac_trial"] = coverage(hac["lower"], hac["upper"], theta_true, ok)
     bandwidth = float(np.median(hac["bandwidth"]))
     s_x = hac["bandwidth"]
     for mult in HAC_MULTIPLIERS:
-        cov, _ = _correlated.hac_covariance(*jac_r, trials, bandwidth=mult * s_x)
-        _, lo_m, hi_m = _correlated.sandwich_intervals(theta, cov, hac["dof"])
+        cov, _ = eng.hac_covariance(*jac_r, trials, bandwidth=mult * s_x)
+        _, lo_m, hi_m = eng.sandwich_intervals(theta, cov, hac["dof"])
         res[f"hac_trial_x{mult:g}"] = coverage(lo_m, hi_m, theta_true, ok)
-    hac_c = _correlated.correlated_intervals(spec, data, theta, "hac", curves_b, jac_r=jac_r)
+    hac_c = eng.correlated_intervals(spec, data, theta, "hac", curves_b, jac_r=jac_r)
     res["hac_curve"] = coverage(hac_c["lower"], hac_c["upper"], theta_true, ok)
-    for k in _correlated.CLUSTER_KINDS:
-        out = _correlated.correlated_intervals(spec, data, theta, "cluster", curves_b,
-                                               kind=k, jac_r=jac_r)
+    for k in eng.CLUSTER_KINDS:
+        out = eng.correlated_intervals(spec, data, theta, "cluster", curves_b, kind=k,
+                                       jac_r=jac_r)
         res[f"{k}_curve"] = coverage(out["lower"], out["upper"], theta_true, ok)
     if trial.max() > 1:
         for k in ("CR2", "CR3"):
-            out = _correlated.correlated_intervals(spec, data, theta, "cluster", trials,
-                                                   kind=k, jac_r=jac_r)
+            out = eng.correlated_intervals(spec, data, theta, "cluster", trials, kind=k,
+                                           jac_r=jac_r)
             res[f"{k}_trial"] = coverage(out["lower"], out["upper"], theta_true, ok)
     if n_boot:
         sub = FitData(*(tuple(a[:boot_m] for a in f) if isinstance(f, tuple) else f[:boot_m]
                         for f in data))
-        blo, bhi, _, _ = _intervals.bootstrap(spec, sub, theta[:boot_m],
-                                              jax.random.key(seed), n_boot)
+        blo, bhi, _, _ = eng.bootstrap_intervals(spec, sub, theta[:boot_m],
+                                                 jax.random.key(seed), n_boot)
         res["bootstrap"] = coverage(blo, bhi, theta_true, ok[:boot_m])
     return {
         "design": design, "model": model, "noise": kind, "rows": n,

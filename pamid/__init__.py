@@ -7,7 +7,10 @@ The public API has three tiers (docs/architecture.md):
   (:class:`ForceModel` and :func:`register_model`, the effects a virtual bench can inject,
   the ensemble kernel and its moves).
 * ``pamid.sarosi`` and ``pamid.cullinan``: each paper's artefacts (tables, eq.-numbered
-  functions, presets, constants); ``pamid.io``: writing results atomically.
+  functions, presets, constants); ``pamid.io``: writing results atomically;
+  ``pamid.report``: results written out (JSON text, tables, NetCDF, figures);
+  ``pamid.engine``: the low-level tier (model registry, batched solver, starts, interval
+  estimators, sampler pieces) for code that builds on them.
 * everything under a leading underscore: private, grouped by concept: ``_data`` (reading
   files), ``_virtual`` (the virtual benches), ``_effects``, ``_models`` (force laws),
   ``_fit`` (batched least squares and intervals), ``_sim`` (simulators), ``_decays`` (free
@@ -139,8 +142,9 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "SlidingModeController": ("._control._sliding_mode", "SlidingModeController"),
     "ProportionalValve": ("._control._valve", "ProportionalValve"),
     "PamVolume": ("._models._volume", "PamVolume"),
-    # The papers' artefacts, and writing results as pamid's commands do.
+    # The papers' artefacts, writing results as pamid's commands do, and the low-level tier.
     "cullinan": (".cullinan", None),
+    "engine": (".engine", None),
     "io": (".io", None),
     "report": (".report", None),
     "sarosi": (".sarosi", None),
@@ -255,6 +259,7 @@ def __dir__():
 
 if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPORTS``
     from . import cullinan as cullinan
+    from . import engine as engine
     from . import io as io
     from . import report as report
     from . import sarosi as sarosi

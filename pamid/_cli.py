@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 import warnings
@@ -32,36 +31,12 @@ _INPUT_ARGUMENTS = ("data", "decay", "model_json", "fit")
 
 
 def _enable_compilation_cache():
-    """Switch on JAX's persistent compilation cache for this command; returns the function
-    that puts the caller's setting back (a test or a notebook calling ``main`` in-process
-    keeps compiling as it did before, and writes nothing into the cache afterwards)."""
-    import jax
-    from jax.experimental.compilation_cache import compilation_cache
+    """Switch on the compilation cache and the exported programs for this command
+    (:func:`pamid._fit._export_cache.use_disk_caches`, ``PAMID_CACHE_DIR``); returns the
+    function that puts the caller's settings back."""
+    from ._fit._export_cache import use_disk_caches
 
-    cache = os.environ.get("PAMID_CACHE_DIR") or str(Path.home() / ".cache" / "pamid" / "jax")
-    try:
-        Path(cache).mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return lambda: None  # an unwritable home is no reason to fail; we compile every time
-    names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs",
-             "jax_persistent_cache_min_entry_size_bytes")
-    before = {name: getattr(jax.config, name) for name in names}
-
-    def restore() -> None:
-        for name, value in before.items():
-            jax.config.update(name, value)
-        compilation_cache.reset_cache()
-
-    compilation_cache.reset_cache()
-    jax.config.update("jax_compilation_cache_dir", cache)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    # ... and the traced programs, so that a new process does not trace them again either
-    # (off again when main returns: see main).
-    from ._fit import _export_cache
-
-    _export_cache.enable(Path(cache) / "exported")
-    return restore
+    return use_disk_caches()
 
 
 def _format_table(result, published=None) -> str:

@@ -60,6 +60,7 @@ from ._sim._lifting_mass import (
     default_zeta,
     hysteresis_branches,
     lifting_mass_damping,
+    lifting_mass_force,
     zeta_from_hysteresis,
 )
 
@@ -70,7 +71,7 @@ __all__ = [
     "table_3_1_fit_json",
     # Hysteresis and damping: eq. 2.3–2.10 (the lifting mass of Fig. 2-3: eq. 2.2).
     "default_zeta", "hysteresis_branches", "hysteresis_damping", "lifting_mass_damping",
-    "sarosi_force_integral", "zeta_from_hysteresis",
+    "lifting_mass_force", "sarosi_force_integral", "zeta_from_hysteresis",
     # Temperature: Section 3.3.2, Table 3-2.
     "TABLE_3_2", "MuscleThermal", "fit_table_3_2", "sarosi_at_temperature",
     "steady_state_temperature_C", "temperature_after_C",

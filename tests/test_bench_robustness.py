@@ -371,6 +371,23 @@ def test_fast_reader_takes_a_wide_file(tmp_path):
     assert pamid.load_bench(path).frame.shape == (10, 1 + 300 + 1)
 
 
+def test_the_environment_switches_the_fast_reader_off(tmp_path, monkeypatch):
+    # PAMID_FAST_CSV=0 (how benchmarks/load_bench.py times the cell-by-cell reader): the
+    # fast reader is not tried, and the table is the same.
+    path = tmp_path / "wide.csv"
+    path.write_text(wide_csv(20))
+    fast = pamid.load_bench(path)
+    tried = []
+    monkeypatch.setattr(_csv, "_read_csv_fast", lambda *a, **k: tried.append(a))
+    monkeypatch.setenv("PAMID_FAST_CSV", "0")
+    slow = pamid.load_bench(path)
+    assert tried == []
+    pd.testing.assert_frame_equal(fast.frame, slow.frame, check_exact=True)
+    monkeypatch.setenv("PAMID_FAST_CSV", "1")
+    pamid.load_bench(path)
+    assert len(tried) == 1
+
+
 def test_numbers_pyarrow_parses_read_as_the_cell_by_cell_reader_reads_them(tmp_path, monkeypatch):
     # The fast reader has pyarrow parse known numeric columns as float64 (no byte-level check
     # of the cells): every cell must give the cell-by-cell reader's number or, where that

@@ -121,3 +121,27 @@ def test_a_cache_that_cannot_be_written_costs_only_the_saving(tmp_path, monkeypa
         assert list((tmp_path / "full").iterdir()) == []
     finally:
         _export_cache.enable(None)
+
+
+def test_use_disk_caches_switches_both_on_and_gives_the_settings_back(tmp_path, monkeypatch):
+    # pamid.engine.use_disk_caches: the command's caches for a script (PAMID_CACHE_DIR by
+    # default); what it returns puts the caller's settings back, both caches.
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    before, exported = jax.config.jax_compilation_cache_dir, _export_cache.directory()
+    monkeypatch.setenv("PAMID_CACHE_DIR", str(tmp_path / "env"))
+    restore = pamid.engine.use_disk_caches()
+    try:
+        assert jax.config.jax_compilation_cache_dir == str(tmp_path / "env")
+        assert _export_cache.directory() == tmp_path / "env" / "exported"
+        a = np.arange(3.0)
+        np.testing.assert_array_equal(_export_cache.call(("add",), lambda v: v + 1, a), a + 1)
+        assert entries(tmp_path / "env" / "exported")
+    finally:
+        restore()
+    assert jax.config.jax_compilation_cache_dir == before
+    assert _export_cache.directory() == exported
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    pamid.engine.use_disk_caches(blocker / "cache")()  # cannot be created: nothing changes
+    assert jax.config.jax_compilation_cache_dir == before
+    assert _export_cache.directory() == exported

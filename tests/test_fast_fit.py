@@ -80,6 +80,19 @@ def test_noiseless_data_give_the_constants_back(theta31):
     assert max_rel(theta, thetas) < 1e-9
 
 
+def test_the_fit_at_a_fixed_a3_gives_the_linear_constants_back(theta31):
+    # pamid.engine.sarosi_fit_at_a3, variable projection's inner problem: at the true a3 of
+    # noiseless data, the other five constants and S = 0; QR and normal equations agree.
+    (p, k), y = muscle(theta31, 0.0, 0)
+    w = np.ones_like(y)
+    for accurate in (True, False):
+        beta, sse = pamid.engine.sarosi_fit_at_a3(theta31[2], p, k, y, w, accurate=accurate)
+        assert max_rel(np.asarray(beta), np.delete(theta31, 2)) < 1e-7
+        assert float(sse) < 1e-10 * float(np.sum(y * y))
+    beta, sse = pamid.engine.sarosi_fit_at_a3(1.5 * theta31[2], p, k, y, w)
+    assert float(sse) > 1.0
+
+
 def test_same_optimum_as_scipy_and_optimistix(small_bench, theta31):
     data = small_bench.data
     theta, ok, _ = solve(SAROSI, data)

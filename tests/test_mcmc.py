@@ -145,6 +145,31 @@ def test_numpy_log_prob_agrees_with_jax(sarosi_data, theta31):
         np.testing.assert_allclose(f_np(z, x, y, w), f_jax(z, x, y, w), rtol=1e-11)
 
 
+def test_engine_sampler_pieces_are_fit_mcmcs(sarosi_data):
+    # pamid.engine's log-probabilities are one object per arguments (what is compiled with
+    # them is compiled once), and its StackedSampler from its initial_walkers advances every
+    # muscle's ensemble as fit_mcmc's stacked sampler does.
+    eng = pamid.engine
+    prior = default_prior(SAROSI)
+    lp = eng.walker_log_prob(SAROSI, prior)
+    assert lp is eng.walker_log_prob(SAROSI, prior, "normal", 4) is _mcmc._log_prob(
+        SAROSI, prior, "normal", 4.0)
+    assert eng.ensemble_log_prob(SAROSI, prior) is eng.ensemble_log_prob(SAROSI, prior)
+    ls = pamid.fit_least_squares(sarosi_data)
+    start = eng.initial_walkers(jax.random.key(1), ls, prior, lp, sarosi_data, 16, 0.1)
+    m = sarosi_data.n_muscles
+    assert start.shape == (m, 16, 7)
+    walkers = eng.ensemble_log_prob(SAROSI, prior)
+    x0 = tuple(a[0] for a in sarosi_data.x)
+    lp0 = walkers(jnp.asarray(start[0]), x0, sarosi_data.y[0], sarosi_data.w[0])
+    assert lp0.shape == (16,) and np.all(np.isfinite(np.asarray(lp0)))
+    sampler = eng.StackedSampler(lp, jax.random.key(2), start, sarosi_data)
+    pos, lps, acc = sampler.advance(40, 10)
+    assert pos.shape == (m, 4, 16, 7) and lps.shape == (m, 4, 16) and acc.shape == (m,)
+    assert np.all(np.isfinite(lps)) and np.all(acc > 0)
+    np.testing.assert_array_equal(pos[:, -1], np.asarray(sampler.state.position))
+
+
 def test_default_priors_follow_the_spec():
     assert default_prior(SAROSI).names == SAROSI.param_names
     static, dynamic = default_prior(CULLINAN), default_prior(CULLINAN_DYNAMIC)

@@ -46,7 +46,9 @@ Reading
 -------
 The reader comes from the registry of formats (:mod:`._readers`): CSV (:mod:`._csv`: the
 delimiter and decimal mark are detected; ``sep=`` and ``decimal=`` override them; a plain
-file is read column by column with pyarrow, any other cell by cell, with the same result),
+file is read column by column with pyarrow, any other cell by cell, with the same result;
+``PAMID_FAST_CSV=0`` in the environment reads every file cell by cell, to time the two or to
+rule the fast reader out),
 Parquet (:mod:`._parquet`), and ``.xlsx``, ``.xlsm``, ``.xlsb``, ``.xls``, ``.ods``
 (:mod:`._spreadsheet`: the first sheet unless ``sheet=`` names one; a date or time cell in a
 numeric column is an error). A pipe, a FIFO or ``/dev/stdin`` is read once, whole, and its

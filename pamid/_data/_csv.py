@@ -17,6 +17,7 @@ from __future__ import annotations
 import codecs
 import csv
 import io
+import os
 import re
 from pathlib import Path
 
@@ -175,7 +176,9 @@ def csv_names(path: Path, shown: str, data: bytes | None = None) -> list[str]:
 
 
 #: Whether :func:`load_bench` tries the fast, column-wise CSV reader first. Switched off, every
-#: CSV file goes through the cell-by-cell reader (tests and benchmarks compare the two).
+#: CSV file goes through the cell-by-cell reader (tests and benchmarks compare the two); so
+#: does the environment variable ``PAMID_FAST_CSV=0`` (the public switch,
+#: ``benchmarks/load_bench.py``), read at every call.
 _FAST_CSV = True
 
 #: Bytes a plain decimal number is written with, for each decimal mark.
@@ -190,8 +193,9 @@ def read_csv_fast(
     decimal: str | None = None, columns: dict[str, str] | None = None,
 ) -> _Table | None:
     """:func:`_read_csv_fast` (the table with pamid's names, or None), unless the fast reader is
-    switched off (:data:`_FAST_CSV`): then None, and the reference reader reads every file."""
-    if not _FAST_CSV:
+    switched off (:data:`_FAST_CSV`, or ``PAMID_FAST_CSV=0``): then None, and the reference
+    reader reads every file."""
+    if not _FAST_CSV or os.environ.get("PAMID_FAST_CSV", "").strip() == "0":
         return None
     return _read_csv_fast(path, shown, sep=sep, decimal=decimal, columns=columns, data=data)
 

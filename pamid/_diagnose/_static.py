@@ -60,9 +60,9 @@ from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
 from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._least_squares import bounds_arrays
 from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
 from .._fit._sharding import lane_devices
-from .._fit._least_squares import bounds_arrays
 from .._fit._spec import ModelSpec, builtin_key
 from .._units import KPA_PER_BAR
 from ._residual import legendre_basis, scaled

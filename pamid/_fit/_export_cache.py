@@ -56,6 +56,44 @@ def directory() -> Path | None:
     return _DIR
 
 
+def use_disk_caches(directory=None):
+    """Switch on the disk caches the ``pamid`` command uses: JAX's persistent compilation
+    cache in ``directory`` and pamid's exported programs (:func:`enable`) in its
+    ``exported`` folder, so that a later process neither traces nor compiles what an earlier
+    one ran. ``directory``: default ``PAMID_CACHE_DIR``, else ``~/.cache/pamid/jax``; one
+    that cannot be created leaves both caches as they were (everything is compiled as
+    usual). Returns the function that puts the caller's settings back (a test or a notebook
+    calling the command in-process keeps compiling as it did before)."""
+    import os
+
+    import jax
+    from jax.experimental.compilation_cache import compilation_cache
+
+    cache = directory or os.environ.get("PAMID_CACHE_DIR") or str(
+        Path.home() / ".cache" / "pamid" / "jax")
+    try:
+        Path(cache).mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return lambda: None  # an unwritable home is no reason to fail; we compile every time
+    names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs",
+             "jax_persistent_cache_min_entry_size_bytes")
+    before = {name: getattr(jax.config, name) for name in names}
+    exporting = _DIR
+
+    def restore() -> None:
+        for name, value in before.items():
+            jax.config.update(name, value)
+        compilation_cache.reset_cache()
+        enable(exporting)
+
+    compilation_cache.reset_cache()
+    jax.config.update("jax_compilation_cache_dir", str(cache))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    enable(Path(cache) / "exported")  # the traced programs: a new process skips tracing
+    return restore
+
+
 #: Packages whose code is traced into pamid's programs: a new version of any makes new entries.
 TRACED_PACKAGES = ("jax", "jaxlib", "equinox", "lineax", "optimistix", "jaxopt")
 

@@ -308,6 +308,12 @@ def register_model(model, *, name: str | None = None, **kwargs) -> ModelSpec:
     return spec
 
 
+def model_names() -> tuple[str, ...]:
+    """The names of pamid's own models, those :func:`register_model` added included (what
+    ``--model NAME`` and :func:`get_model` accept), in the order they were registered."""
+    return tuple(MODELS)
+
+
 def builtin_key(spec: ModelSpec) -> tuple | None:
     """A name for one of pamid's own specs that is the same in every process (the key of
     its exported programs, ``_export_cache``); None for any other spec."""

@@ -68,6 +68,17 @@ def _linear_solve(a3, p, k, y, w, accurate=True):
     return beta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
 
+def sarosi_fit_at_a3(a3, p, k, y, w, *, accurate: bool = True):
+    """Eq. 2.1 fitted to one muscle with a3 held: (β, S), β = (a1, a2, a4, a5, a6) the
+    weighted least-squares linear constants and S(a3) their sum of squares; p the gauge
+    pressure in bar, k the contraction in %, y the force in N, w the weights (n,) each. The
+    inner problem of variable projection: S(a3) over a grid of a3 is the profile the starts
+    scan. ``accurate``: through a column-scaled QR (exact to rounding); else the equilibrated
+    5×5 normal equations (several times cheaper, what the scans use). Pure JAX: ``jax.vmap``
+    it over values of a3 or over muscles."""
+    return _linear_solve(a3, p, k, y, w, accurate=accurate)
+
+
 def _small_cholesky_solve(a, b, with_pivot=False):
     """Solve a·z = b for a small symmetric positive definite ``a``, unrolled.
 

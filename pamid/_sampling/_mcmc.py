@@ -30,7 +30,9 @@ log-probability. Its gain is the absence of Python between
 steps, not the batching: its cost per muscle hardly changes with M. Its compilation is
 cached on disk by the CLI; for one muscle in a fresh process without that cache, a whole
 emcee run is about as fast. So ``sampler="auto"`` means ``"stacked"`` (``AUTO_SAMPLER``).
-The stacked sampler's kernel and moves are public (:mod:`._ensemble`, ``pamid.ensemble_step``).
+The stacked sampler's kernel and moves are public (:mod:`._ensemble`, ``pamid.ensemble_step``),
+and so are the sampler and its pieces (``pamid.engine.StackedSampler``, ``walker_log_prob``,
+``initial_walkers``).
 
 Run length. Walkers start in a small ball around the least-squares optimum (0.1 Wald
 standard errors). The chains grow in chunks; every ``check_every`` steps the integrated
@@ -103,16 +105,46 @@ def _walker_log_prob(spec, prior, likelihood, nu):
                             in_axes=(0, None, None, None)))
 
 
+def walker_log_prob(spec: ModelSpec, prior: Prior, likelihood: str = "normal",
+                    nu: float = DEFAULT_NU):
+    """The log-posterior :func:`fit_mcmc` samples, for one walker of one muscle:
+    ``log_prob(z, x, y, w)`` with z = (θ, log σ) (:func:`._posterior.make_log_prob`). The
+    same function object for the same arguments, so that what is compiled with it (a
+    :class:`StackedSampler`, :func:`initial_walkers`) is compiled once."""
+    return _log_prob(spec, prior, likelihood, float(nu))
+
+
+def ensemble_log_prob(spec: ModelSpec, prior: Prior, likelihood: str = "normal",
+                      nu: float = DEFAULT_NU):
+    """:func:`walker_log_prob` ``vmap``-ped over the walkers of one muscle and jitted:
+    ``f(z (W, d), x, y, w) -> (W,)``, the vectorized log-probability that
+    ``fit_mcmc(sampler="emcee")`` hands each ``emcee.EnsembleSampler``."""
+    return _walker_log_prob(spec, prior, likelihood, float(nu))
+
+
 @functools.cache
 def _stacked_log_prob(log_prob):
     """jit(vmap over muscles of vmap over walkers): (M, W, d) → (M, W)."""
     return jax.jit(jax.vmap(jax.vmap(log_prob, (0, None, None, None)), (0, 0, 0, 0)))
 
 
-class _StackedBackend:
+class StackedSampler:
+    """The ``"stacked"`` sampler of :func:`fit_mcmc`: the ensembles of all muscles of
+    ``data``, advanced together by one compiled call per chunk of steps (module docstring).
+
+    ``log_prob``: one walker's log-posterior (:func:`walker_log_prob`); ``key``: a JAX PRNG
+    key; ``position``: the walkers' start (M, W, d), e.g. :func:`initial_walkers`;
+    ``de_fraction``: the share of differential-evolution moves, the rest stretch moves.
+    :meth:`advance` runs ``n_steps`` steps (a multiple of ``thin``) and returns the kept
+    positions (M, n_steps/thin, W, d), their log-posteriors (M, n_steps/thin, W) and the
+    accepted moves per muscle (M,); ``state`` is the last :class:`EnsembleState`. A call
+    with the same ``n_steps`` and ``thin`` reuses the compiled program.
+    """
+
     name = "stacked"
 
-    def __init__(self, log_prob, key, position, data: FitData, de_fraction):
+    def __init__(self, log_prob, key, position, data: FitData,
+                 de_fraction: float = DE_FRACTION):
         self.log_prob, self.key, self.de_fraction = log_prob, key, de_fraction
         self.x, self.y, self.w = data.x, data.y, data.w
         lp = _stacked_log_prob(log_prob)(jnp.asarray(position), self.x, self.y, self.w)
@@ -419,9 +451,12 @@ def _inside_support(theta: np.ndarray, prior: Prior) -> np.ndarray:
     return np.where(np.isfinite(hi) & (np.abs(hi - theta) <= step), hi - step, theta)
 
 
-def _initial_ball(key, ls: FitResult, prior: Prior, log_prob_1, data, n_walkers, scale):
-    """Walkers around the least-squares optimum: (θ, log s) + scale·(se, 1/√(2·dof))·N(0, 1),
-    redrawn where the log-posterior is not finite."""
+def initial_walkers(key, ls: FitResult, prior: Prior, log_prob_1, data, n_walkers: int,
+                    scale: float):
+    """Walkers around the least-squares optimum, as :func:`fit_mcmc` starts them, (M, W,
+    p + 1): (θ, log s) + scale·(se, 1/√(2·dof))·N(0, 1), redrawn where the log-posterior
+    ``log_prob_1`` (:func:`walker_log_prob`) is not finite. ``ls``: the least-squares fit
+    of ``data`` (a FitResult with Wald standard errors)."""
     m, p = ls.theta.shape
     theta = _inside_support(np.asarray(ls.theta, np.float64), prior)
     s = np.sqrt(ls.sse / np.maximum(ls.dof, 1))
@@ -556,9 +591,9 @@ def fit_mcmc(
                            bounds=bounds)
     log_prob_1 = _log_prob(spec, prior, likelihood, float(nu))
     k_ball, k_run, k_pred = jax.random.split(key, 3)
-    start = _initial_ball(k_ball, ls, prior, log_prob_1, data, n_walkers, ball_scale)
+    start = initial_walkers(k_ball, ls, prior, log_prob_1, data, n_walkers, ball_scale)
     if sampler == "stacked":
-        backend = _StackedBackend(log_prob_1, k_run, start, data, float(de_fraction))
+        backend = StackedSampler(log_prob_1, k_run, start, data, float(de_fraction))
     else:
         backend = _EmceeBackend(spec, prior, likelihood, float(nu), k_run, start, data,
                                 float(de_fraction))

@@ -303,11 +303,13 @@ def make_log_prob(spec: ModelSpec, prior: Prior, likelihood: str = "normal",
 
 def numpy_log_prob(spec_name: str, prior: Prior, likelihood: str = "normal",
                    nu: float = DEFAULT_NU) -> Callable:
-    """The same log-posterior in NumPy, vectorized over walkers, for Sárosi only.
+    """The same log-posterior in NumPy, vectorized over walkers, for Sárosi only:
+    ``log_prob(z (W, d), x, y, w) -> (W,)``, e.g. for an ``emcee.EnsembleSampler`` with
+    ``vectorize=True``.
 
-    Only for the benchmark (``benchmarks/mcmc_batch.py``), which measures the issue's
-    remark that a NumPy log-probability is faster per call than a jitted JAX one for a model
-    this small; the tests check that both agree.
+    For comparison: the benchmarks (``benchmarks/mcmc_batch.py``, ``run.py``) measure with it
+    the remark that a NumPy log-probability is faster per call than a jitted JAX one for a
+    model this small; the tests check that both agree.
     """
     if spec_name != "sarosi":
         raise ValueError("the NumPy log-probability is written for the Sárosi model only")
