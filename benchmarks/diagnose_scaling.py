@@ -10,7 +10,7 @@ curves), ``rows / 100`` points per sweep, with hysteresis (9 N at 3 bar), temper
 that the forward selection has several steps to take. The sampling interval shrinks as the
 points grow (``seconds_per_point = 200 / points``): every file covers the same test.
 
-Every file is diagnosed twice, each in a fresh subprocess (``python -m pamid._cli diagnose
+Every file is diagnosed twice, each in a fresh subprocess (``python -m pamid diagnose
 FILE --json``) with its own empty compilation cache (``PAMID_CACHE_DIR``): *cold* compiles
 everything, *warm* reads the compiled programs the cold run left. Peak memory is the
 child's maximum resident set size (``os.wait4``'s ``ru_maxrss``; this parent imports only
@@ -69,7 +69,7 @@ def run_diagnose(path: Path, cache: Path, extra: list[str]) -> dict:
     env = dict(os.environ, PAMID_CACHE_DIR=str(cache))
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, "-m", "pamid._cli", "diagnose", str(path),
+        proc = subprocess.Popen([sys.executable, "-m", "pamid", "diagnose", str(path),
                                  "--json", *extra], stdout=out, stderr=err, cwd=ROOT, env=env)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0

@@ -156,7 +156,9 @@ def main(argv=None) -> int:
         env["PYTHONPATH"] = str(snapshot) + os.pathsep + env.get("PYTHONPATH", "")
         env["PAMID_CACHE_DIR"] = str(tmp / "cache")
         py = sys.executable
-        pamid_cmd = [py, "-m", "pamid._cli", "fit"]
+        # `python -m pamid`; a revision from before pamid/__main__.py runs its CLI module.
+        entry = "pamid" if (snapshot / "pamid" / "__main__.py").exists() else "pamid._cli"
+        pamid_cmd = [py, "-m", entry, "fit"]
         (tmp / "cache").mkdir()
         where = run([py, "-c", "import pamid; print(pamid.__file__)"], env, 120)["stdout"]
         if not where.strip().startswith(str(snapshot)):
