@@ -353,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:
     from ._fit import _export_cache
 
     exporting = _export_cache.directory()
-    sigterm = failure.catch_sigterm()
+    signals = failure.catch_signals()
     restore_cache = lambda: None  # noqa: E731 (set where the cache is switched on)
     try:
         # Before any computing: the output place can be written, and no output of this run
@@ -370,6 +370,7 @@ def main(argv: list[str] | None = None) -> int:
                 warnings.simplefilter("always")
                 warnings.showwarning = _show_warning
                 code = args.func(args)
+            failure.raise_if_signalled()  # a Ctrl-C that a callback swallowed: no commit
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code
     except BenchDataError as exc:
@@ -405,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
         restore_cache()
         _export_cache.enable(exporting)
         _io.protect_inputs([])
-        failure.restore_sigterm(sigterm)
+        failure.restore_signals(signals)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -282,7 +282,7 @@ def output_folder(out: str | os.PathLike | None, *, command: str) -> Iterator[Pa
 
     The guarantee. When the block raises anything (an error, :class:`KeyboardInterrupt`
     from SIGINT, SIGTERM turned into an exception by
-    :func:`pamid._commands.failure.catch_sigterm`), the staging folder and the parent
+    :func:`pamid._commands.failure.catch_signals`), the staging folder and the parent
     folders made for it are removed, and ``out`` is left byte for byte as it was (or absent,
     as it was). When the block ends normally: a new ``out`` is the staging folder renamed,
     one atomic step; into an existing ``out``, the set of files the previous run of the same

@@ -28,21 +28,39 @@ class Terminated(BaseException):
     half-written file is left behind)."""
 
 
-def _on_sigterm(signum, frame):
-    raise Terminated
+#: Signals received while :func:`catch_signals`' handlers were in place, first first.
+_RECEIVED: list[int] = []
 
 
-def catch_sigterm():
-    """Turn SIGTERM into :class:`Terminated` for the running command; returns the previous
-    handler (None outside the main thread, where no handler can be set)."""
+def _on_signal(signum, frame):
+    _RECEIVED.append(signum)
+    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+
+
+def catch_signals():
+    """Turn SIGTERM into :class:`Terminated` and SIGINT into :class:`KeyboardInterrupt` for
+    the running command, and remember that they came (:func:`raise_if_signalled`); returns
+    the previous handlers (None outside the main thread, where no handler can be set)."""
     if threading.current_thread() is not threading.main_thread():
         return None
-    return signal.signal(signal.SIGTERM, _on_sigterm)
+    _RECEIVED.clear()
+    return {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
 
 
-def restore_sigterm(previous) -> None:
+def raise_if_signalled() -> None:
+    """Raise the exception of a signal that came but did not end the command: Python runs a
+    signal handler between two bytecodes of the main thread, which may be inside a garbage
+    collector's callback (JAX registers one) or a ``__del__``, where an exception is
+    printed as "ignored" and dropped. A Ctrl-C there was lost: the command ran on and
+    replaced ``--out``. Called before the results are committed."""
+    if _RECEIVED:
+        raise Terminated if _RECEIVED[0] == signal.SIGTERM else KeyboardInterrupt
+
+
+def restore_signals(previous) -> None:
     if previous is not None:
-        signal.signal(signal.SIGTERM, previous)
+        for s, handler in previous.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
 #: Longest message quoted from an exception (XLA's run to many lines).
 MAX_QUOTE = 300
 
