@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import matplotlib.image
+import numpy as np
 import pytest
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -36,10 +37,10 @@ def test_fit_of_the_real_isometric_file_with_plots(tmp_path, pamid_cli):
 
 
 def test_diagnose_of_the_real_isometric_file(tmp_path, pamid_cli):
-    # A subsample of whole curves keeps the suite's time (the whole file: about 2 minutes,
-    # 1.2 GB; benchmarks/README.md); the file is read as it comes. Smaller subsamples
-    # (8,000 or 16,000 rows) leave a muscle whose six constants the curves kept cannot
-    # determine, and diagnose then refuses it (exit 1).
+    # A subsample of whole curves keeps the suite's time (the whole file: about a minute,
+    # 1.7 GB; benchmarks/README.md); the file is read as it comes. 24,000 rows keep two
+    # curves of every setting (4 contraction levels × 2 directions) of every muscle, every
+    # other row of them (test_max_rows_keeps_every_level below).
     out = tmp_path / "diag"
     proc = pamid_cli(["diagnose", str(AARL), "--json", "--max-rows", "24000", "--out", str(out)])
     assert proc.returncode == 0, proc.stderr
@@ -47,7 +48,7 @@ def test_diagnose_of_the_real_isometric_file(tmp_path, pamid_cli):
     doc = json.loads(proc.stdout)
     assert doc["rows_total"] == 61515
     assert 0 < doc["rows_used"] <= 24000
-    assert "whole curves" in doc["subsample"]
+    assert "of 96 of 144 curves" in doc["subsample"]
     assert doc["rmse_after"] <= doc["rmse_before"]
     for name in ("diagnosis.json", "report.txt", "residuals_before_after.png",
                  "residual_time_order.png"):
@@ -60,3 +61,23 @@ def test_fit_of_the_martens_force_map(tmp_path, pamid_cli):
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert doc["n_censored_dropped"] > 0 and doc["muscles"][0]["converged"]
+
+
+@pytest.mark.skipif(not AARL.exists(), reason="measured data not present")
+def test_max_rows_keeps_every_level_of_every_muscle():
+    """A new user's --max-rows 6000 kept two curves per muscle, both at one contraction
+    level: the baseline could not be determined and diagnose stopped (exit 2)."""
+    import pamid
+    from pamid._diagnose._api import subsample_curves
+
+    bench = pamid.load_bench(AARL)
+    sub, note = subsample_curves(bench, 6000)
+    assert len(sub.frame) <= 6000 and "of 96 of 144 curves" in note
+    kept = bench.frame["source_row"].isin(sub.frame["source_row"]).to_numpy()
+
+    def levels(rows):  # distinct held contraction levels of each muscle (the file's curves)
+        muscle = bench.frame["muscle"].to_numpy()
+        return {m: len(np.unique(np.round(bench.curves.level[rows & (muscle == m)], 1)))
+                for m in bench.muscles}
+
+    assert levels(kept) == levels(np.ones_like(kept)) == dict.fromkeys(bench.muscles, 4)

@@ -72,6 +72,39 @@ def diagnose(data, *, model: str = "sarosi", inertia_kg_m2: float | None = None,
     return _diagnose_bench(data, model, n_folds, progress, max_rows, bounds)
 
 
+def _level_groups(group, level):
+    """Held levels of curves as set points: within each ``group`` (a muscle's sweeps or its
+    isometric curves), levels closer than 2 % of the group's range of levels are one (a
+    curve's level is estimated from its noisy samples, so repeats of a set point differ in
+    their last digits)."""
+    out = np.zeros(len(level), int)
+    for g in np.unique(group):
+        idx = np.flatnonzero(group == g)
+        order = idx[np.argsort(level[idx], kind="stable")]
+        values = level[order]
+        gap = 0.02 * (values[-1] - values[0])
+        out[order] = np.concatenate([[0], np.cumsum(np.diff(values) > gap)])
+    return out
+
+
+def _owner_of(setting, owner):
+    """The muscle of each setting id."""
+    out = np.zeros(int(setting.max()) + 1, int)
+    out[setting] = owner
+    return out
+
+
+def _spread(pos):
+    """An order of the places 0, 1, 2, … of curves in time that spreads them over the test:
+    the places' bits reversed (0, then the middle, then the quarters, …)."""
+    pos = np.asarray(pos, np.int64)
+    bits = max(1, int(pos.max()).bit_length()) if len(pos) else 1
+    out = np.zeros_like(pos)
+    for b in range(bits):
+        out |= ((pos >> b) & 1) << (bits - 1 - b)
+    return out
+
+
 def _is_decay_file(path: Path) -> bool:
     """A decay file names its angle (``angle_rad`` or ``angle_deg``); a bench file never does.
     Only the header is read; a file that cannot be read is left to ``load_bench`` to report."""
@@ -88,10 +121,14 @@ def subsample_curves(bench, max_rows: int):
     """A representative subsample of ``bench`` of at most ``max_rows`` rows, whole curves kept.
 
     Curves are those of :func:`pamid._data._curves.find_curves` (``bench.curves``). Every
-    muscle keeps the same share of its curves, evenly spaced along its curves sorted by
-    setting (moving input, direction, held level) and then time: every setting keeps
-    curves, spread over the test. Where whole curves cannot get under ``max_rows`` (a muscle
-    with fewer curves than that takes), every k-th row of each kept curve is kept instead.
+    muscle keeps the same share of its curves, and at least two of every setting it was
+    tested at (moving input, direction, held level; one where it has one): a model fitted
+    to one contraction level of an isometric file cannot be diagnosed, and a
+    cross-validation fold that holds out the only curve of a setting tests extrapolation. The curves of a setting are taken in
+    an order spread over the test (the first, then the middle, then the quarters, …), and
+    the settings in turn, so that each share keeps every setting and early and late curves
+    of it. Where whole curves cannot get under ``max_rows`` (a muscle with fewer curves
+    than that takes), every k-th row of each kept curve is kept instead.
 
     Returns ``(bench, note)``: ``bench`` itself and None when it has ``max_rows`` rows or
     fewer, else a :class:`~pamid.BenchData` of the kept rows (in file order) and a phrase
@@ -105,24 +142,39 @@ def subsample_curves(bench, max_rows: int):
     muscle = pd.factorize(frame["muscle"], sort=False)[0]
     uid = muscle * (int(c.curve.max()) + 1) + c.curve  # one id per (muscle, curve)
     ids, first, sizes = np.unique(uid, return_index=True, return_counts=True)
-    order = np.lexsort((first, c.level[first], c.direction[first], c.moving[first],
-                        muscle[first]))
-    ids, sizes, owner = ids[order], sizes[order], muscle[first][order]
+    owner = muscle[first]
+    level = _level_groups(owner * 2 + c.moving[first], np.nan_to_num(c.level[first], nan=0.0))
+    setting = np.unique(np.stack([owner, c.moving[first], c.direction[first], level], axis=1),
+                        axis=0, return_inverse=True)[1].ravel()
+    by_setting = np.lexsort((first, setting))
+    pos = np.empty(len(ids), int)  # the curve's place in its setting, in time order
+    pos[by_setting] = np.arange(len(ids)) - np.searchsorted(setting[by_setting],
+                                                             setting[by_setting])
+    order = np.lexsort((setting, _spread(pos), owner))
+    ids, sizes, owner = ids[order], sizes[order], owner[order]
     rank = np.arange(len(ids)) - np.searchsorted(owner, owner)  # position within its muscle
     count = np.bincount(owner)[owner]  # curves of its muscle
+    settings = np.bincount(np.unique(np.stack([muscle[first], setting], 1), axis=0)[:, 0])
+    # Every setting of its muscle twice where it has two curves of it: a held-out fold of
+    # the cross-validation then never takes away the only curve of a setting.
+    per_setting = np.bincount(setting)
+    twice = np.bincount(_owner_of(setting, muscle[first]),
+                        np.minimum(per_setting, 2), minlength=len(settings))
+    fewest = np.minimum(count, twice[owner])
     share = max_rows / n
     for _ in range(30):
-        want = np.maximum(1, np.round(share * count))  # curves kept per muscle (≥ 1)
-        # evenly spaced picks: position j is kept when a multiple of count/want falls in it
-        kept = np.floor((rank + 1) * want / count) > np.floor(rank * want / count)
+        want = np.maximum(fewest, np.round(share * count))
+        kept = rank < want
         rows = int(np.sum(sizes[kept]))
-        if rows <= max_rows or np.all(want == 1):
+        if rows <= max_rows or np.all(want == fewest):
             break
         share *= 0.98 * max_rows / rows
     keep = np.isin(uid, ids[kept])
     note = f"{int(np.sum(kept))} of {len(ids)} whole curves, evenly spread over settings and time"
     step = -(-rows // max_rows)  # ceil
-    if step > 1:  # one curve per muscle is still too much: thin every curve alike
+    while step > 1 and int(np.sum(-(-sizes[kept] // step))) > max_rows:
+        step += 1  # each curve keeps its rows 0, step, 2·step, …: ceil(size / step) of them
+    if step > 1:  # every setting once is still too much: thin every curve alike
         within = pd.Series(uid[keep]).groupby(uid[keep]).cumcount().to_numpy()
         keep[np.flatnonzero(keep)[within % step != 0]] = False
         note = (f"one row in {step} of {int(np.sum(kept))} of {len(ids)} curves, evenly "
