@@ -124,10 +124,10 @@ def subsample_curves(bench, max_rows: int):
     muscle keeps the same share of its curves, and at least two of every setting it was
     tested at (moving input, direction, held level; one where it has one): a model fitted
     to one contraction level of an isometric file cannot be diagnosed, and a
-    cross-validation fold that holds out the only curve of a setting tests extrapolation. The curves of a setting are taken in
-    an order spread over the test (the first, then the middle, then the quarters, …), and
-    the settings in turn, so that each share keeps every setting and early and late curves
-    of it. Where whole curves cannot get under ``max_rows`` (a muscle with fewer curves
+    cross-validation fold that holds out the only curve of a setting tests extrapolation.
+    The curves of a setting are taken in an order spread over the test (the first, then
+    the middle, then the quarters, …), and the settings in turn, so that each share keeps
+    every setting and early and late curves of it. Where whole curves cannot get under ``max_rows`` (a muscle with fewer curves
     than that takes), every k-th row of each kept curve is kept instead.
 
     Returns ``(bench, note)``: ``bench`` itself and None when it has ``max_rows`` rows or
