@@ -302,10 +302,8 @@ def _statistics_lag1(spec, theta, x, y, w, curve):
     (:func:`lag1_sums`) in the same compiled call: from the fast
     path's own pass over the samples where its statistics take ``curve=`` (Sárosi's
     ``sarosi_statistics``), else from the residual, computed once more."""
-    import inspect
-
     fast = spec.fast_path
-    if fast is not None and "curve" in inspect.signature(fast.statistics).parameters:
+    if fast is not None and fast.statistics_take_curve:
         return fast.statistics(theta, x, y, w, curve=curve)
     if fast is not None:
         stats = fast.statistics(theta, x, y, w)

@@ -31,6 +31,9 @@ class FastPath:
         gauss_newton: ``(x, y, w, [theta0], *, max_steps, rtol, atol) -> (theta, ok,
             steps)`` for a batch, with its own start when no ``theta0`` is given.
         statistics: ``(theta, x, y, w) -> (sse, (JᵀJ)⁻¹, corr, n, full_rank)`` for a batch.
+        statistics_take_curve: ``statistics`` also takes ``curve=`` (the lanes' curve ids)
+            and then returns the residual's lag-1 sums after those five
+            (:func:`pamid._fit._least_squares.lag1_sums`), from its own pass.
         variable_projection: ``(x, y, w, n_refine) -> (theta, _, bracket_width)`` or None.
         profile_derivatives: ``(x, y, w) -> (derivatives, sse_only)`` for the profile
             intervals' Newton iteration, or None.
@@ -39,6 +42,7 @@ class FastPath:
     key: str
     gauss_newton: Callable
     statistics: Callable
+    statistics_take_curve: bool = False
     variable_projection: Callable | None = None
     profile_derivatives: Callable | None = None
 
@@ -269,7 +273,7 @@ def _sarosi_fast_path() -> FastPath:
     from ._variable_projection import sarosi_variable_projection
 
     return FastPath(key="sarosi", gauss_newton=sarosi_gauss_newton,
-                    statistics=sarosi_statistics,
+                    statistics=sarosi_statistics, statistics_take_curve=True,
                     variable_projection=sarosi_variable_projection,
                     profile_derivatives=sarosi_derivatives)
 
