@@ -87,13 +87,6 @@ def _level_groups(group, level):
     return out
 
 
-def _owner_of(setting, owner):
-    """The muscle of each setting id."""
-    out = np.zeros(int(setting.max()) + 1, int)
-    out[setting] = owner
-    return out
-
-
 def _spread(pos):
     """An order of the places 0, 1, 2, … of curves in time that spreads them over the test:
     the places' bits reversed (0, then the middle, then the quarters, …)."""
@@ -127,8 +120,8 @@ def subsample_curves(bench, max_rows: int):
     cross-validation fold that holds out the only curve of a setting tests extrapolation.
     The curves of a setting are taken in an order spread over the test (the first, then
     the middle, then the quarters, …), and the settings in turn, so that each share keeps
-    every setting and early and late curves of it. Where whole curves cannot get under ``max_rows`` (a muscle with fewer curves
-    than that takes), every k-th row of each kept curve is kept instead.
+    every setting and early and late curves of it. Where whole curves cannot get under
+    ``max_rows``, every k-th row of each kept curve is kept instead.
 
     Returns ``(bench, note)``: ``bench`` itself and None when it has ``max_rows`` rows or
     fewer, else a :class:`~pamid.BenchData` of the kept rows (in file order) and a phrase
@@ -154,13 +147,12 @@ def subsample_curves(bench, max_rows: int):
     ids, sizes, owner = ids[order], sizes[order], owner[order]
     rank = np.arange(len(ids)) - np.searchsorted(owner, owner)  # position within its muscle
     count = np.bincount(owner)[owner]  # curves of its muscle
-    settings = np.bincount(np.unique(np.stack([muscle[first], setting], 1), axis=0)[:, 0])
     # Every setting of its muscle twice where it has two curves of it: a held-out fold of
     # the cross-validation then never takes away the only curve of a setting.
-    per_setting = np.bincount(setting)
-    twice = np.bincount(_owner_of(setting, muscle[first]),
-                        np.minimum(per_setting, 2), minlength=len(settings))
-    fewest = np.minimum(count, twice[owner])
+    setting_owner = np.zeros(int(setting.max()) + 1, int)
+    setting_owner[setting] = muscle[first]
+    fewest = np.bincount(setting_owner, np.minimum(np.bincount(setting), 2),
+                         minlength=int(muscle.max()) + 1)[owner]
     share = max_rows / n
     for _ in range(30):
         want = np.maximum(fewest, np.round(share * count))
@@ -174,7 +166,7 @@ def subsample_curves(bench, max_rows: int):
     step = -(-rows // max_rows)  # ceil
     while step > 1 and int(np.sum(-(-sizes[kept] // step))) > max_rows:
         step += 1  # each curve keeps its rows 0, step, 2·step, …: ceil(size / step) of them
-    if step > 1:  # every setting once is still too much: thin every curve alike
+    if step > 1:  # the curves each setting needs are still too many: thin them alike
         within = pd.Series(uid[keep]).groupby(uid[keep]).cumcount().to_numpy()
         keep[np.flatnonzero(keep)[within % step != 0]] = False
         note = (f"one row in {step} of {int(np.sum(kept))} of {len(ids)} curves, evenly "
