@@ -75,6 +75,24 @@ def frame_groups(frame: pd.DataFrame) -> list:
     ]
 
 
+def _fresh_python(code: str):
+    """Run ``code`` in a new interpreter (from the repository root) and return the JSON
+    value of the last line it prints."""
+    import json
+    from pathlib import Path
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[1])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="session")
+def fresh_python():
+    """The function :func:`_fresh_python`: what a fresh process imports, for tests of the
+    import cost."""
+    return _fresh_python
+
+
 @pytest.fixture(scope="session")
 def split_frame():
     """The function :func:`frame_groups`, for tests that simulate their own bench."""

@@ -11,7 +11,6 @@ import ast
 import importlib
 import json
 import re
-import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -142,13 +141,11 @@ def test_unknown_name_is_an_attribute_error():
         assert not hasattr(pamid, "_not_there")
 
 
-def test_import_is_lazy_and_float64():
-    code = ("import sys, json, pamid, jax; "
-            "print(json.dumps([sorted(m for m in sys.modules if m.startswith('pamid')), "
-            "jax.config.jax_enable_x64]))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, cwd=ROOT)
-    modules, x64 = json.loads(out.stdout.strip().splitlines()[-1])
+def test_import_is_lazy_and_float64(fresh_python):
+    modules, x64 = fresh_python(
+        "import sys, json, pamid, jax; "
+        "print(json.dumps([sorted(m for m in sys.modules if m.startswith('pamid')), "
+        "jax.config.jax_enable_x64]))")
     assert modules == ["pamid"]
     assert x64 is True
 

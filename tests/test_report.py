@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -65,13 +63,10 @@ def test_decay_result_classes_hold_results_only(cls):
     assert _writing_methods(getattr(pamid, cls)) == []
 
 
-def test_importing_report_loads_no_plotting_library():
-    code = ("import sys, pamid.report; "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
-            "('matplotlib', 'arviz')))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, cwd=ROOT)
-    assert out.stdout.strip().splitlines()[-1] == "[]"
+def test_importing_report_loads_no_plotting_library(fresh_python):
+    assert fresh_python("import sys, json, pamid.report; "
+                        "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in "
+                        "('matplotlib', 'arviz'))))") == []
 
 
 @pytest.fixture(scope="module")
