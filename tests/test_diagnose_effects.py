@@ -123,6 +123,50 @@ def test_steps_time_since_step_and_relaxation_known_answers():
     assert not moving_steps(p, np.zeros(8, np.int8), trial).any()
 
 
+def test_compliance_force_and_its_derivatives_are_those_of_the_fixed_point(theta31):
+    """F = F_model(p, κ + c·F) (Sárosi eq. 2.1 with a rig in series): the diagnosis' force
+    solves the fixed point, and its derivatives in (a1…a6, c) are the implicit function's,
+    dF/dq = (∂F_model/∂q) / (1 − c·∂F_model/∂κ), against a plain bisection here."""
+    from pamid._diagnose._static import _predict
+    from pamid._effects._definitions import transforms
+    from pamid._fit._spec import get_model
+
+    spec = get_model("sarosi")
+    theta = np.asarray(theta31, float)
+    p_bar = np.array([1.0, 2.5, 4.0, 6.0])
+    kappa = np.array([2.0, 8.0, 15.0, 20.0])
+    x = spec.to_x(p_bar * 100.0, kappa)
+    c = 0.004  # %/N: 600 N shift the contraction by 2.4 %
+    slot = [d.name for d in transforms()].index("compliance")
+
+    def force(q):
+        tv = jax.numpy.zeros(len(transforms())).at[slot].set(q[6])
+        return _predict(spec, q[:6], tv, x, True)
+
+    def fixed_point(q):  # bisection on F − F_model(p, κ + c·F), one sample at a time
+        out = []
+        for pi, ki in zip(p_bar, kappa, strict=True):
+            lo, hi = -2000.0, 5000.0
+            for _ in range(200):
+                mid = 0.5 * (lo + hi)
+                f_model = float(spec.predict(q[:6], spec.to_x(np.array([pi * 100.0]),
+                                                               np.array([ki + q[6] * mid])))[0])
+                lo, hi = (mid, hi) if mid - f_model < 0 else (lo, mid)
+            out.append(0.5 * (lo + hi))
+        return np.array(out)
+
+    q = np.concatenate([theta, [c]])
+    np.testing.assert_allclose(force(jax.numpy.asarray(q)), fixed_point(q), rtol=1e-10)
+    jac = np.asarray(jax.jacfwd(force)(jax.numpy.asarray(q)))
+    for j in range(7):
+        h = 1e-6 * max(abs(q[j]), 1e-3)
+        up, down = q.copy(), q.copy()
+        up[j] += h
+        down[j] -= h
+        np.testing.assert_allclose(jac[:, j], (fixed_point(up) - fixed_point(down)) / (2 * h),
+                                   rtol=1e-5, atol=1e-6)
+
+
 # -- physical bounds ---------------------------------------------------------------------------
 
 
