@@ -70,9 +70,6 @@ from ._select import SetFit
 
 N_FOLDS = 5
 MAX_ITER = 60
-#: Solves of a lane at most: the first, then again with the constants that left their
-#: bounds held on them (:meth:`StaticProblem.evaluate`).
-BOUND_PASSES = 3
 #: Stopping test of the refits (:func:`pamid._fit._engine.levenberg_marquardt`): the
 #: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
 RTOL = 1e-11
@@ -471,31 +468,14 @@ class StaticProblem:
 
     def unphysical(self, fit: SetFit, name: str) -> str | None:
         """Why effect ``name``'s constants in ``fit`` are not physical (the first muscle
-        where they are not), or why the model's constants refitted with it are past their
-        bounds; None when neither."""
+        where they are not), or None. (The model's own constants cannot be past their
+        bounds: the refits keep them within, :func:`_lane`.)"""
         e = self.effect(name)
         for i, m in enumerate(self.muscles):
             who = f"muscle {self.bench.muscles[i]}: " if len(self.muscles) > 1 else ""
             msg = e.definition.violation(self.constants_of(fit, name, i), e, self.file, m)
             if msg is not None:
                 return who + msg
-            msg = self._past_bounds(fit.extra["params"][i][: self.spec.n_params])
-            if msg is not None:
-                return f"{who}with {name}, {msg}"
-        return None
-
-    def _past_bounds(self, theta) -> str | None:
-        """"a3 would need -3.4 < -3 (its lower bound)" for the first of the model's
-        constants past its bound, or None."""
-        if self.lower is None:
-            return None
-        theta = np.asarray(theta, float)
-        for j, pname in enumerate(self.spec.param_names):
-            low, high = self.lower[j], self.upper[j]
-            if theta[j] < low and not _on_bound(theta[j], low, high):
-                return f"{pname} would need {theta[j]:.4g} < {low:.4g} (its lower bound)"
-            if theta[j] > high and not _on_bound(theta[j], low, high):
-                return f"{pname} would need {theta[j]:.4g} > {high:.4g} (its upper bound)"
         return None
 
     # -- fitting -----------------------------------------------------------------------------
@@ -540,45 +520,24 @@ class StaticProblem:
         # lanes do not need.
         lane_comp = implicit[lanes_set]
         # The model's constants start at the baseline's; those it holds on a bound are held
-        # there. A lane whose refit takes a constant past its bound is solved again with
-        # that constant held on the bound (an active set, as the fit's own bounded refit),
-        # at most BOUND_PASSES times.
-        free = self.base_free[lanes_muscle].copy()
-        start = np.asarray(self.theta0, float)[lanes_muscle].copy()
+        # there. The others are kept within their bounds inside the solve (a projected
+        # Levenberg–Marquardt): a constant a refit pushes onto its bound is held there.
+        free = self.base_free[lanes_muscle]
+        start = np.asarray(self.theta0, float)[lanes_muscle]
         outs = None
-        todo = np.arange(len(lanes_set))
-        for _ in range(BOUND_PASSES):
-            parts = {}
-            for flag in (False, True):
-                sel = todo[lane_comp[todo] == flag]
-                if len(sel) == 0:
-                    continue
-                parts[flag] = (sel, _fit_lanes(
-                    self.spec, flag, shared, lanes_muscle[sel], lanes_fold[sel],
-                    cols[lanes_set[sel]], colmask[lanes_set[sel]], free[sel], start[sel],
-                ))
+        for flag in (False, True):
+            sel = np.flatnonzero(lane_comp == flag)
+            if len(sel) == 0:
+                continue
+            out = _fit_lanes(self.spec, flag, shared, lanes_muscle[sel], lanes_fold[sel],
+                             cols[lanes_set[sel]], colmask[lanes_set[sel]], free[sel],
+                             start[sel])
             if outs is None:
-                first = next(iter(parts.values()))[1]
                 outs = [np.zeros((len(lanes_set), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
-                        for a in first]
-            for sel, out in parts.values():
-                for arr, a in zip(outs, out, strict=True):
-                    arr[sel] = np.asarray(a)
-            if self.lower is None:
-                break
-            theta = outs[0][todo, :k]
-            low = (theta < self.lower) & ~_on_bound(theta, self.lower, self.upper)
-            high = (theta > self.upper) & ~_on_bound(theta, self.lower, self.upper)
-            past = low | high
-            redo = np.flatnonzero(past.any(axis=1))
-            if len(redo) == 0:
-                break
-            lanes = todo[redo]
-            free[lanes] = np.where(past[redo], 0.0, free[lanes])
-            start[lanes] = np.where(low[redo], self.lower,
-                                    np.where(high[redo], self.upper, start[lanes]))
-            todo = lanes
-        params, sse, sse_test, resid, jtj_inv, ok, rank = outs
+                        for a in out]
+            for arr, a in zip(outs, out, strict=True):
+                arr[sel] = np.asarray(a)
+        params, sse, sse_test, resid, jtj_inv, ok, rank, n_free = outs
         w = np.asarray(self.data.w)
         curve = np.maximum(np.asarray(self.data.curve), 0)
         n_used = np.sum(w > 0, axis=1)
@@ -601,19 +560,21 @@ class StaticProblem:
                 cv_sse=float(np.sum(sse_test[cv])), cv_n=int(np.sum(w_test > 0)),
                 converged=ok[full] & self.baseline_converged,
                 extra={"params": params[full], "jtj_inv": jtj_inv[full],
-                       "full_rank": rank[full] == (np.sum(free[full], axis=1)
-                                                   + len(slots[i]) + int(trmask[i].sum())),
+                       "full_rank": rank[full] == n_free[full],
                        "residual": resid[full], "slots": slots[i],
                        "compliance": bool(implicit[i])},
             ))
         return results
 
     def _shared_arrays(self):
-        """What every lane gathers from, on the device once: (x, y, w, fold, features)."""
+        """What every lane gathers from, on the device once: (x, y, w, fold, features,
+        the model's bounds as (lower, upper) or None)."""
         if getattr(self, "_shared", None) is None:
+            bounds = None if self.lower is None else (jnp.asarray(self.lower),
+                                                      jnp.asarray(self.upper))
             self._shared = (tuple(jnp.asarray(xi) for xi in self.data.x),
                             jnp.asarray(self.data.y), jnp.asarray(self.data.w),
-                            jnp.asarray(self.fold), jnp.asarray(self.features))
+                            jnp.asarray(self.fold), jnp.asarray(self.features), bounds)
         return self._shared
 
 
@@ -780,8 +741,10 @@ def numerical_rank(jac, rtol: float = RANK_RTOL):
 def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0):
     """One lane: the set's effect columns ``cols`` (masked by ``colmask``) fitted to
     ``muscle``'s samples, all of them (``fold`` 0) or all but fold ``fold − 1``; the
-    model's constants start at ``theta0``, those where ``free`` is 0 held there."""
-    x_all, y_all, w_all, fold_all, feat_all = shared
+    model's constants start at ``theta0``, those where ``free`` is 0 held there, the others
+    kept within the model's bounds (``shared``'s last entry; the effects' constants are not
+    bounded here: one past its physical bound is reported as what it would have needed)."""
+    x_all, y_all, w_all, fold_all, feat_all, model_bounds = shared
     x = tuple(xi[muscle] for xi in x_all)
     y = y_all[muscle]
     held = (fold_all[muscle] == fold - 1) & (fold > 0)
@@ -815,18 +778,23 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
         return r, jac
 
     params0 = jnp.concatenate([theta0, jnp.zeros(n_tr + s)])
-    eye_off = jnp.diag(1.0 - mask)
+    bounds = None
+    if model_bounds is not None:
+        unbounded = jnp.full(n_tr + s, jnp.inf)
+        bounds = (jnp.concatenate([model_bounds[0], -unbounded]),
+                  jnp.concatenate([model_bounds[1], unbounded]))
     floor = jnp.sum(w > 0) * ATOL_N**2
     sol = levenberg_marquardt(normal, params0, mask, max_steps=MAX_ITER, rtol=RTOL,
-                              floor=floor)
-    params, sse, jac = sol.params, sol.sse, sol.jac
-    a = jac.T @ jac + eye_off
-    jtj_inv = jnp.linalg.inv(a) * mask[:, None] * mask[None, :]
+                              floor=floor, bounds=bounds)
+    params, sse, jac, free = sol.params, sol.sse, sol.jac, sol.free
+    # Held constants (masked, or held on a bound at the end) have no variance.
+    a = jac.T @ jac + jnp.diag(1.0 - free)
+    jtj_inv = jnp.linalg.inv(a) * free[:, None] * free[None, :]
     rank = numerical_rank(jac)
     resid_all = y - pred(params)
     sse_test = jnp.sum(w_test * resid_all**2)
     ok = sol.result == CONVERGED
-    return params, sse, sse_test, resid_all, jtj_inv, ok, rank
+    return params, sse, sse_test, resid_all, jtj_inv, ok, rank, jnp.sum(free > 0)
 
 
 def _fit_lanes_impl(spec, with_compliance, shared, muscle, fold, cols, colmask, free, start):

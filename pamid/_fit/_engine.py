@@ -19,6 +19,15 @@ for data the model fits exactly).
 
 Masked constants (mask 0) keep their start values: their rows and columns of JᵀJ are
 replaced by the identity and their gradient by 0.
+
+Box bounds (optional), as in a projected Newton method (D. P. Bertsekas, "Projected Newton
+methods for optimization problems with simple constraints", SIAM J. Control Optim. 20,
+1982): a constant on its bound whose gradient points out of the box is held there, as a
+masked one, and so is one whose step would leave the box (the others' step is then solved
+again without it); the trial point is projected onto the box. The stopping test asks the
+decrement of the constants not held by their gradient: a lane ends on a point that
+satisfies the Karush–Kuhn–Tucker conditions, and ``Solution.free`` says which constants
+were held on a bound there.
 """
 
 from __future__ import annotations
@@ -52,6 +61,9 @@ class Solution(NamedTuple):
         sse: the sum of squares of ``residual``.
         result: a result code (:data:`RESULT_NAMES`).
         steps: the number of steps taken.
+        free: the mask at the end: 0 for the masked constants and for those held on a
+            bound (box bounds only; otherwise the mask itself). ``jac`` has these
+            columns zero.
     """
 
     params: jax.Array
@@ -60,13 +72,19 @@ class Solution(NamedTuple):
     sse: jax.Array
     result: jax.Array
     steps: jax.Array
+    free: jax.Array
 
 
 def masked_normal(jac, r, mask):
     """g = Jᵀr and JᵀJ, the masked rows and columns replaced by the identity (g = 0 there)."""
+    return restrict(jac.T @ r, jac.T @ jac, mask)
+
+
+def restrict(g, h, mask):
+    """g and h with the constants where ``mask`` is 0 taken out: g = 0 and h's rows and
+    columns the identity's there."""
     both = mask[:, None] * mask[None, :]
-    h = jnp.where(both > 0, jac.T @ jac, jnp.eye(mask.shape[0], dtype=jac.dtype))
-    return mask * (jac.T @ r), h
+    return mask * g, jnp.where(both > 0, h, jnp.eye(mask.shape[0], dtype=h.dtype))
 
 
 def newton_decrement(g, h):
@@ -79,57 +97,76 @@ def newton_decrement(g, h):
 
 
 def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: float,
-                        floor=0.0, damping0: float = 1e-3) -> Solution:
+                        floor=0.0, damping0: float = 1e-3, bounds=None) -> Solution:
     """Minimise ‖r(p)‖² for one lane from ``p0``, holding the constants where ``mask`` is 0.
 
     Args:
         linearise: ``p -> (r, J)``, the (weighted) residual vector and its Jacobian in p;
             rows of weight 0 must be zero in both (padding, held-out samples).
-        p0: start values; mask: 1.0 for a free constant, 0.0 for a held one.
+        p0: start values (inside ``bounds``); mask: 1.0 for a free constant, 0.0 for a
+            held one.
         max_steps: the step budget; rtol, floor: the stopping test (module docstring).
+        bounds: ``(lower, upper)``, arrays of ``p0``'s shape (±inf where unbounded), or
+            None (module docstring).
     """
     mask = jnp.asarray(mask, dtype=p0.dtype)
 
     def lin(p):
         r, jac = linearise(p)
         jac = jac * mask[None, :]
-        g, h = masked_normal(jac, r, mask)
-        return r, jac, g, h, r @ r
+        free = mask
+        if bounds is not None:
+            g = jac.T @ r  # ½·∂SSE/∂p: a constant on its lower bound with g > 0 wants out
+            out = ((p <= bounds[0]) & (g > 0)) | ((p >= bounds[1]) & (g < 0))
+            free = jnp.where(out, 0.0, mask)
+            jac = jac * free[None, :]
+        g, h = masked_normal(jac, r, free)
+        return r, jac, g, h, r @ r, free
 
     def small(g, h, sse):
         return newton_decrement(g, h) <= rtol * sse + floor
 
-    r, jac, g, h, sse = lin(p0)
-    state = (p0, r, jac, g, h, sse, jnp.asarray(damping0, p0.dtype),
+    r, jac, g, h, sse, free = lin(p0)
+    state = (p0, r, jac, g, h, sse, free, jnp.asarray(damping0, p0.dtype),
              jnp.asarray(2.0, p0.dtype), 0, small(g, h, sse) | ~jnp.isfinite(sse))
 
     def cond(s):
-        return (~s[-1]) & (s[8] < max_steps)
+        return (~s[-1]) & (s[9] < max_steps)
+
+    def damped_step(g, h, lam):
+        d = jnp.diag(h)
+        return -jnp.linalg.solve(h + lam * jnp.diag(jnp.maximum(d, 1e-12 * jnp.max(d))), g)
 
     def body(s):
-        p, r, jac, g, h, sse, lam, nu, k, _ = s
-        d = jnp.diag(h)
-        damped = h + lam * jnp.diag(jnp.maximum(d, 1e-12 * jnp.max(d)))
-        step = -jnp.linalg.solve(damped, g)
-        predicted = -(g @ step + 0.5 * step @ h @ step)
+        p, r, jac, g, h, sse, free, lam, nu, k, _ = s
+        step = damped_step(g, h, lam)
+        if bounds is not None:
+            # A constant on its bound whose step would leave the box is held for this step
+            # too, and the others' step solved again without it: clipping it instead would
+            # bend the step of every constant it is correlated with.
+            out = ((p <= bounds[0]) & (step < 0)) | ((p >= bounds[1]) & (step > 0))
+            step = damped_step(*restrict(g, h, jnp.where(out, 0.0, free)), lam)
+            step = jnp.clip(p + step, *bounds) - p
         p_new = p + step
-        r_n, jac_n, g_n, h_n, sse_n = lin(p_new)
+        predicted = -(g @ step + 0.5 * step @ h @ step)
+        r_n, jac_n, g_n, h_n, sse_n, free_n = lin(p_new)
         rho = 0.5 * (sse - sse_n) / jnp.maximum(predicted, 1e-300)
         ok = jnp.isfinite(sse_n) & (rho > 1e-4)
         lam = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
                         lam * nu)
         nu = jnp.where(ok, 2.0, 2.0 * nu)
-        p, r, jac, g, h, sse = (
+        p, r, jac, g, h, sse, free = (
             jnp.where(ok, a, b)
-            for a, b in ((p_new, p), (r_n, r), (jac_n, jac), (g_n, g), (h_n, h), (sse_n, sse))
+            for a, b in ((p_new, p), (r_n, r), (jac_n, jac), (g_n, g), (h_n, h), (sse_n, sse),
+                         (free_n, free))
         )
         done = small(g, h, sse) | (lam > MAX_DAMPING)
-        return p, r, jac, g, h, sse, lam, nu, k + 1, done
+        return p, r, jac, g, h, sse, free, lam, nu, k + 1, done
 
-    p, r, jac, g, h, sse, lam, _, k, _ = jax.lax.while_loop(cond, body, state)
+    p, r, jac, g, h, sse, free, lam, _, k, _ = jax.lax.while_loop(cond, body, state)
     finite = jnp.isfinite(sse) & jnp.all(jnp.isfinite(p))
     result = jnp.where(
         ~finite, NONFINITE,
         jnp.where(small(g, h, sse), CONVERGED, jnp.where(lam > MAX_DAMPING, STALLED, MAX_STEPS)))
-    return Solution(p, r, jac, sse, result, k)
+    return Solution(p, r, jac, sse, result, k, free)
 
