@@ -773,9 +773,7 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
         # only the base constants (and c) need forward-mode derivatives of the model.
         jac_nl = jax.jacfwd(
             lambda tc: _predict(spec, tc[:k], tc[k:], x, with_compliance))(params[: k + n_tr])
-        jac = -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]
-        jac = jac * mask[None, :]
-        return r, jac
+        return r, -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]  # masked by the loop
 
     params0 = jnp.concatenate([theta0, jnp.zeros(n_tr + s)])
     bounds = None

@@ -75,11 +75,6 @@ class Solution(NamedTuple):
     free: jax.Array
 
 
-def masked_normal(jac, r, mask):
-    """g = Jᵀr and JᵀJ, the masked rows and columns replaced by the identity (g = 0 there)."""
-    return restrict(jac.T @ r, jac.T @ jac, mask)
-
-
 def restrict(g, h, mask):
     """g and h with the constants where ``mask`` is 0 taken out: g = 0 and h's rows and
     columns the identity's there."""
@@ -114,31 +109,33 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
     def lin(p):
         r, jac = linearise(p)
         jac = jac * mask[None, :]
+        g, h = jac.T @ r, jac.T @ jac  # g = ½·∂SSE/∂p
         free = mask
-        if bounds is not None:
-            g = jac.T @ r  # ½·∂SSE/∂p: a constant on its lower bound with g > 0 wants out
+        if bounds is not None:  # a constant on its lower bound with g > 0 wants out
             out = ((p <= bounds[0]) & (g > 0)) | ((p >= bounds[1]) & (g < 0))
             free = jnp.where(out, 0.0, mask)
-            jac = jac * free[None, :]
-        g, h = masked_normal(jac, r, free)
+        g, h = restrict(g, h, free)
         return r, jac, g, h, r @ r, free
 
     def small(g, h, sse):
         return newton_decrement(g, h) <= rtol * sse + floor
 
-    r, jac, g, h, sse, free = lin(p0)
-    state = (p0, r, jac, g, h, sse, free, jnp.asarray(damping0, p0.dtype),
+    # The loop carries only what is the size of the constants: the residual and the
+    # Jacobian (samples × constants) are computed again once at the end. Carrying them
+    # cost a select over both in every step, a large share of a step with many samples.
+    _, _, g, h, sse, free = lin(p0)
+    state = (p0, g, h, sse, free, jnp.asarray(damping0, p0.dtype),
              jnp.asarray(2.0, p0.dtype), 0, small(g, h, sse) | ~jnp.isfinite(sse))
 
     def cond(s):
-        return (~s[-1]) & (s[9] < max_steps)
+        return (~s[-1]) & (s[7] < max_steps)
 
     def damped_step(g, h, lam):
         d = jnp.diag(h)
         return -jnp.linalg.solve(h + lam * jnp.diag(jnp.maximum(d, 1e-12 * jnp.max(d))), g)
 
     def body(s):
-        p, r, jac, g, h, sse, free, lam, nu, k, _ = s
+        p, g, h, sse, free, lam, nu, k, _ = s
         step = damped_step(g, h, lam)
         if bounds is not None:
             # A constant on its bound whose step would leave the box is held for this step
@@ -149,21 +146,22 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
             step = jnp.clip(p + step, *bounds) - p
         p_new = p + step
         predicted = -(g @ step + 0.5 * step @ h @ step)
-        r_n, jac_n, g_n, h_n, sse_n, free_n = lin(p_new)
+        _, _, g_n, h_n, sse_n, free_n = lin(p_new)
         rho = 0.5 * (sse - sse_n) / jnp.maximum(predicted, 1e-300)
         ok = jnp.isfinite(sse_n) & (rho > 1e-4)
         lam = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
                         lam * nu)
         nu = jnp.where(ok, 2.0, 2.0 * nu)
-        p, r, jac, g, h, sse, free = (
+        p, g, h, sse, free = (
             jnp.where(ok, a, b)
-            for a, b in ((p_new, p), (r_n, r), (jac_n, jac), (g_n, g), (h_n, h), (sse_n, sse),
-                         (free_n, free))
+            for a, b in ((p_new, p), (g_n, g), (h_n, h), (sse_n, sse), (free_n, free))
         )
         done = small(g, h, sse) | (lam > MAX_DAMPING)
-        return p, r, jac, g, h, sse, free, lam, nu, k + 1, done
+        return p, g, h, sse, free, lam, nu, k + 1, done
 
-    p, r, jac, g, h, sse, free, lam, _, k, _ = jax.lax.while_loop(cond, body, state)
+    p, g, h, sse, free, lam, _, k, _ = jax.lax.while_loop(cond, body, state)
+    r, jac, *_ = lin(p)
+    jac = jac * free[None, :]
     finite = jnp.isfinite(sse) & jnp.all(jnp.isfinite(p))
     result = jnp.where(
         ~finite, NONFINITE,
