@@ -145,3 +145,24 @@ def pamid_cli(tmp_path_factory):
                               env=env, timeout=timeout)
 
     return run
+
+
+@pytest.fixture(scope="session")
+def run_notebook():
+    """``run_notebook(path, folder)`` executes a notebook top to bottom in a new kernel whose
+    working folder and temporary folder (``TMPDIR``: what the notebook's
+    ``tempfile.mkdtemp()`` writes into) are ``folder``; a failing cell raises
+    ``CellExecutionError`` naming it."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+
+    def run(path, folder):
+        nb = nbformat.read(path, as_version=4)
+        client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
+                                         resources={"metadata": {"path": str(folder)}})
+        with pytest.MonkeyPatch.context() as env:
+            env.setenv("TMPDIR", str(folder))  # the kernel inherits this process' environment
+            client.execute()
+        return nb
+
+    return run
