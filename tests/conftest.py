@@ -133,12 +133,20 @@ def _compilation_cache_of_the_run(tmp_path_factory):
 PAMID = [sys.executable, "-m", "pamid._cli"]
 
 
+@pytest.fixture(scope="session")
+def cli_env():
+    """The environment of a command run in a subprocess: this test process' compilation
+    cache (:func:`_compilation_cache_of_the_run`), so that a program one test compiled is
+    loaded, not compiled again, by the next (a worker runs its tests one at a time: no two
+    processes write the cache at once), and the CPU."""
+    return {**os.environ, "JAX_PLATFORMS": "cpu"}
+
+
 @pytest.fixture(scope="module")
-def pamid_cli(tmp_path_factory):
-    """``pamid_cli(args)`` runs the command in a subprocess with a compilation cache of the
-    test module's own and returns the CompletedProcess (text stdout and stderr)."""
-    cache = tmp_path_factory.mktemp("jax-cache")
-    env = {**os.environ, "PAMID_CACHE_DIR": str(cache), "JAX_PLATFORMS": "cpu"}
+def pamid_cli(cli_env):
+    """``pamid_cli(args)`` runs the command in a subprocess (:func:`cli_env`) and returns
+    the CompletedProcess (text stdout and stderr)."""
+    env = cli_env
 
     def run(args, timeout=900):
         return subprocess.run(PAMID + [str(a) for a in args], capture_output=True, text=True,

@@ -260,8 +260,8 @@ def test_parquet_through_a_pipe_is_recognised_by_its_bytes(pipe, tmp_path):
     pd.testing.assert_frame_equal(from_pipe.frame, load_bench(path).frame, check_exact=True)
 
 
-def test_dev_stdin_in_a_subprocess(tmp_path):
-    env = {**os.environ, "PAMID_CACHE_DIR": str(tmp_path / "cache"), "JAX_PLATFORMS": "cpu"}
+def test_dev_stdin_in_a_subprocess(tmp_path, cli_env):
+    env = cli_env
     cli = [sys.executable, "-m", "pamid._cli"]
     bad = subprocess.run(cli + ["fit", "/dev/stdin", "--json"], input=BAD_CELL,
                          capture_output=True, text=True, env=env, timeout=300)

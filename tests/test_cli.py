@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -18,9 +17,8 @@ PAMID = [sys.executable, "-m", "pamid._cli"]
 
 
 @pytest.fixture(scope="module")
-def env(tmp_path_factory):
-    cache = tmp_path_factory.mktemp("jax-cache")
-    return {**os.environ, "PAMID_CACHE_DIR": str(cache), "JAX_PLATFORMS": "cpu"}
+def env(cli_env):
+    return cli_env
 
 
 def run(args, env, cwd=None):

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import subprocess
 import sys
 import warnings
@@ -546,13 +545,13 @@ def test_run_mcmc_fit_json_mode_prints_nothing(one_muscle_csv, capsys):
     json.dumps(payload, allow_nan=False)
 
 
-def test_pamid_fit_method_mcmc_when_wired(one_muscle_csv, tmp_path):
+def test_pamid_fit_method_mcmc_when_wired(one_muscle_csv, tmp_path, cli_env):
     """End to end through ``pamid fit --method mcmc``, once the option is wired in."""
     cmd = [sys.executable, "-m", "pamid._cli"]
     helptext = subprocess.run(cmd + ["fit", "--help"], capture_output=True, text=True).stdout
     if "--method" not in helptext:
         pytest.skip("pamid fit has no --method yet")
-    env = {**os.environ, "PAMID_CACHE_DIR": str(tmp_path / "cache"), "JAX_PLATFORMS": "cpu"}
+    env = cli_env
     res = subprocess.run(cmd + ["fit", str(one_muscle_csv), "--method", "mcmc", "--json",
                                 "--max-steps", "6000", "--intervals", "wald"],
                          capture_output=True, text=True, env=env, timeout=600)
