@@ -57,7 +57,7 @@ def _raise(exc):
 
 def test_memory_error_deep_in_diagnose_is_one_line_and_exit_3(bench_csv, monkeypatch, capsys):
     monkeypatch.delenv("PAMID_DEBUG", raising=False)
-    monkeypatch.setattr(_static, "_fit_lanes", _raise(
+    monkeypatch.setattr(_static, "_run_lanes", _raise(
         MemoryError("Unable to allocate 47.0 GiB for an array with shape (64, 9596, 9596)")))
     assert main(["diagnose", str(bench_csv), "--json"]) == failure.EXIT_INTERNAL == 3
     captured = capsys.readouterr()
@@ -74,7 +74,7 @@ def test_xla_resource_exhausted_is_out_of_memory(bench_csv, monkeypatch, capsys)
     exc = jax.errors.JaxRuntimeError(
         "RESOURCE_EXHAUSTED: Out of memory allocating 51256399720 bytes.\n"
         "  while running replica 0 and partition 0 of a replicated computation")
-    monkeypatch.setattr(_static, "_fit_lanes", _raise(exc))
+    monkeypatch.setattr(_static, "_run_lanes", _raise(exc))
     assert main(["diagnose", str(bench_csv)]) == 3
     line = _one_line(capsys.readouterr().err)
     assert line == ("pamid: error: out of memory (JaxRuntimeError: RESOURCE_EXHAUSTED: Out of "
@@ -292,11 +292,19 @@ def test_lane_temporaries_grow_linearly_with_the_rows(tmp_path):
         args = (np.zeros(lanes, int), np.arange(lanes) % 6,
                 np.tile(np.arange(4), (lanes, 1)), np.ones((lanes, n_tr + 4)),
                 np.ones((lanes, k)), np.tile(np.asarray(problem.theta0)[0], (lanes, 1)))
-        compiled = _static._fit_lanes_jit.lower(
+        compiled = _static._solve_lanes_jit.lower(
             problem.spec, True, problem._shared_arrays(), *args).compile()
         temps[rows] = compiled.memory_analysis().temp_size_in_bytes
         assert temps[rows] / (lanes * rows) <= _static.LANE_BYTES_PER_SAMPLE
+        # the statistics of the fits to all data (QR of the Jacobian: n × p, never n × n)
+        p = k + n_tr + 4
+        stats = _static._lane_statistics_jit.lower(
+            problem.spec, True, problem._shared_arrays(), args[0], args[2], args[3],
+            np.ones((lanes, p)), np.zeros((lanes, p))).compile()
+        temps[rows, "statistics"] = stats.memory_analysis().temp_size_in_bytes
+        assert temps[rows, "statistics"] / (lanes * rows) <= _static.LANE_BYTES_PER_SAMPLE
     assert 8.0 < temps[20000] / temps[2000] < 12.0
+    assert 8.0 < temps[20000, "statistics"] / temps[2000, "statistics"] < 12.0
 
 
 @pytest.mark.slow

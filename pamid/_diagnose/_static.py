@@ -489,7 +489,6 @@ class StaticProblem:
         of temporaries: never lanes × rows × features on the host.
         """
         m, n = self.data.y.shape
-        k = self.spec.n_params
         slots = [[c for name in s for c in self.effect(name).columns] for s in sets]
         n_tr = len(transforms())
         n_slots = max(MIN_SLOTS, max(len(s) for s in slots))
@@ -524,20 +523,24 @@ class StaticProblem:
         # Levenberg–Marquardt): a constant a refit pushes onto its bound is held there.
         free = self.base_free[lanes_muscle]
         start = np.asarray(self.theta0, float)[lanes_muscle]
-        outs = None
-        for flag in (False, True):
-            sel = np.flatnonzero(lane_comp == flag)
-            if len(sel) == 0:
-                continue
-            out = _fit_lanes(self.spec, flag, shared, lanes_muscle[sel], lanes_fold[sel],
-                             cols[lanes_set[sel]], colmask[lanes_set[sel]], free[sel],
-                             start[sel])
-            if outs is None:
-                outs = [np.zeros((len(lanes_set), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
-                        for a in out]
-            for arr, a in zip(outs, out, strict=True):
-                arr[sel] = np.asarray(a)
-        params, sse, sse_test, resid, jtj_inv, ok, rank, n_free = outs
+        params, sse, sse_test, resid, ok, free = _by_kind(
+            lane_comp, lambda flag, sel: _run_lanes(
+                _solve_lanes_jit, "diagnose_lanes", self.spec, flag, shared,
+                lanes_muscle[sel], lanes_fold[sel], cols[lanes_set[sel]],
+                colmask[lanes_set[sel]], free[sel], start[sel]))
+        # (JᵀJ)⁻¹ and the numerical rank are asked of the fits to all data only (the
+        # intervals, the BIC); the held-out fits need neither.
+        full_lanes = np.flatnonzero(lanes_fold == 0)
+        stats = _by_kind(
+            lane_comp[full_lanes], lambda flag, sel: _run_lanes(
+                _lane_statistics_jit, "diagnose_lane_statistics", self.spec, flag, shared,
+                lanes_muscle[full_lanes[sel]], cols[lanes_set[full_lanes[sel]]],
+                colmask[lanes_set[full_lanes[sel]]], free[full_lanes[sel]],
+                params[full_lanes[sel]]))
+        jtj_inv = np.zeros((len(lanes_set), *stats[0].shape[1:]))
+        rank = np.zeros(len(lanes_set), int)
+        jtj_inv[full_lanes], rank[full_lanes] = stats
+        n_free = np.sum(free > 0, axis=1)
         w = np.asarray(self.data.w)
         curve = np.maximum(np.asarray(self.data.curve), 0)
         n_used = np.sum(w > 0, axis=1)
@@ -670,7 +673,7 @@ def _predict(spec, theta, tvals, x, implicit: bool):
 
 
 #: Bytes of temporaries per sample of one lane in the compiled lane function: XLA's memory
-#: analysis of ``_fit_lanes_jit`` on the CPU (8 lanes of 10,000 samples) gave 400–590 B for
+#: analysis of ``_solve_lanes_jit`` on the CPU (8 lanes of 10,000 samples) gave 400–590 B for
 #: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance.
 LANE_BYTES_PER_SAMPLE = 1024
 #: Temporaries one compiled call may hold: lanes per call = this / (bytes per lane). Two CPU
@@ -694,26 +697,45 @@ def lanes_per_call(n_samples: int) -> int:
     return min(CHUNK_LANES, 1 << (fit.bit_length() - 1))
 
 
-def _fit_lanes(spec, with_compliance, shared, muscle, fold, cols, colmask, free, start):
-    """Solve the lanes, in calls of :func:`lanes_per_call` lanes. Fewer lanes than that are
-    padded to a power of two (repeating the last lane), at least ``MIN_LANES`` while that
-    stays within ``MIN_LANE_SAMPLES``, so that the steps of a forward selection reuse a few
+def _by_kind(implicit, run):
+    """``run(flag, sel)`` for the lanes ``sel`` without (flag False) and with (True) an
+    implicit transform, the outputs put back in lane order: two compiled functions, since
+    the implicit force law costs Newton steps the other lanes do not need."""
+    outs = None
+    for flag in (False, True):
+        sel = np.flatnonzero(implicit == flag)
+        if len(sel) == 0:
+            continue
+        out = run(flag, sel)
+        if outs is None:
+            outs = [np.zeros((len(implicit), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
+                    for a in out]
+        for arr, a in zip(outs, out, strict=True):
+            arr[sel] = np.asarray(a)
+    return outs
+
+
+def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
+    """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function) over
+    the lanes, in calls of :func:`lanes_per_call` lanes. Fewer lanes than that are padded
+    to a power of two (repeating the last lane), at least ``MIN_LANES`` while that stays
+    within ``MIN_LANE_SAMPLES``, so that the steps of a forward selection reuse a few
     compiled shapes; more are cut into calls of that many (:func:`pamid._fit._batch.
     map_lanes` pads only the last)."""
-    n = len(muscle)
+    n = len(lanes[0])
     n_samples = shared[1].shape[1]
     chunk = lanes_per_call(n_samples)
     fewest = min(MIN_LANES, 1 << (max(1, MIN_LANE_SAMPLES // n_samples).bit_length() - 1))
     size = min(chunk, max(fewest, 1 << (n - 1).bit_length())) if n <= chunk else n
     idx = np.minimum(np.arange(size), n - 1)
-    lanes = (muscle[idx], fold[idx], cols[idx], colmask[idx], free[idx], start[idx])
-    run = functools.partial(_fit_lanes_jit, spec, with_compliance)
-    name = builtin_key(spec)
-    if name is not None and len(lane_devices()) == 1:
+    lanes = tuple(a[idx] for a in lanes)
+    run = functools.partial(fn, spec, with_compliance)
+    key = builtin_key(spec)
+    if key is not None and len(lane_devices()) == 1:
         # Through the exported program on disk when the command line keeps them: a new
         # process then skips tracing the lanes (most of a warm diagnosis of 1,000 rows).
         layout = tuple(d.name for d in transforms())
-        key = ("diagnose_lanes", *name, with_compliance, MAX_ITER, *layout)
+        key = (name, *key, with_compliance, MAX_ITER, *layout)
         out = map_lanes(lambda *a: _export_cache.call(key, run, shared, *a), *lanes,
                         chunk=chunk)
     else:
@@ -738,43 +760,53 @@ def numerical_rank(jac, rtol: float = RANK_RTOL):
     return jnp.sum(sv > sv[0] * rtol)
 
 
-def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0):
-    """One lane: the set's effect columns ``cols`` (masked by ``colmask``) fitted to
-    ``muscle``'s samples, all of them (``fold`` 0) or all but fold ``fold − 1``; the
-    model's constants start at ``theta0``, those where ``free`` is 0 held there, the others
-    kept within the model's bounds (``shared``'s last entry; the effects' constants are not
-    bounded here: one past its physical bound is reported as what it would have needed)."""
-    x_all, y_all, w_all, fold_all, feat_all, model_bounds = shared
+def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
+    """One lane's least-squares problem: the set's effect columns ``cols`` (masked by
+    ``colmask``) on top of the model, fitted to ``muscle``'s samples, all of them (``fold``
+    0) or all but fold ``fold − 1``. Returns (y, w, w_test, pred, normal): the model's
+    force ``pred(params)`` and ``normal(params)`` = (weighted residual, its Jacobian)."""
+    x_all, y_all, w_all, fold_all, feat_all, _ = shared
     x = tuple(xi[muscle] for xi in x_all)
     y = y_all[muscle]
     held = (fold_all[muscle] == fold - 1) & (fold > 0)
     w = jnp.where(held, 0.0, w_all[muscle])
     w_test = jnp.where(held, w_all[muscle], 0.0)
     feats = jnp.take(feat_all[muscle, fold], cols, axis=1)
-    k = theta0.shape[0]
-    s = feats.shape[1]
     n_tr = len(transforms())
+    k = spec.n_params
+    sw = jnp.sqrt(w)
     # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
     # linear slots'; masked constants stay at zero.
-    mask = jnp.concatenate([free, colmask])
-    sw = jnp.sqrt(w)
     lin = feats * colmask[None, n_tr:]
 
     def pred(params):
         theta, tv, phi = params[:k], params[k:k + n_tr], params[k + n_tr:]
         return _predict(spec, theta, tv, x, with_compliance) + lin @ phi
 
-    def resid(params):
-        return sw * (y - pred(params))
-
     def normal(params):
-        r = resid(params)
+        r = sw * (y - pred(params))
         # The effects' constants enter linearly: their Jacobian columns are the features;
         # only the base constants (and c) need forward-mode derivatives of the model.
         jac_nl = jax.jacfwd(
             lambda tc: _predict(spec, tc[:k], tc[k:], x, with_compliance))(params[: k + n_tr])
-        return r, -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]  # masked by the loop
+        return r, -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]
 
+    return y, w, w_test, pred, normal
+
+
+def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0):
+    """Solve one lane (:func:`_lane_problem`): the model's constants start at ``theta0``,
+    those where ``free`` is 0 held there, the others kept within the model's bounds
+    (``shared``'s last entry; the effects' constants are not bounded here: one past its
+    physical bound is reported as what it would have needed). Returns the constants, the
+    SSE, the held-out SSE, the residual of every sample, whether it converged and the mask
+    at the end (0 where a constant is held)."""
+    y, w, w_test, pred, normal = _lane_problem(spec, with_compliance, shared, muscle, fold,
+                                               cols, colmask)
+    model_bounds = shared[5]
+    n_tr = len(transforms())
+    s = cols.shape[0]
+    mask = jnp.concatenate([free, colmask])
     params0 = jnp.concatenate([theta0, jnp.zeros(n_tr + s)])
     bounds = None
     if model_bounds is not None:
@@ -784,23 +816,31 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
     floor = jnp.sum(w > 0) * ATOL_N**2
     sol = levenberg_marquardt(normal, params0, mask, max_steps=MAX_ITER, rtol=RTOL,
                               floor=floor, bounds=bounds)
-    params, sse, jac, free = sol.params, sol.sse, sol.jac, sol.free
-    # Held constants (masked, or held on a bound at the end) have no variance.
-    a = jac.T @ jac + jnp.diag(1.0 - free)
-    jtj_inv = jnp.linalg.inv(a) * free[:, None] * free[None, :]
-    rank = numerical_rank(jac)
-    resid_all = y - pred(params)
+    resid_all = y - pred(sol.params)
     sse_test = jnp.sum(w_test * resid_all**2)
-    ok = sol.result == CONVERGED
-    return params, sse, sse_test, resid_all, jtj_inv, ok, rank, jnp.sum(free > 0)
+    return sol.params, sol.sse, sse_test, resid_all, sol.result == CONVERGED, sol.free
 
 
-def _fit_lanes_impl(spec, with_compliance, shared, muscle, fold, cols, colmask, free, start):
-    return jax.vmap(lambda *a: _lane(spec, with_compliance, shared, *a))(
-        muscle, fold, cols, colmask, free, start)
+def _lane_statistics(spec, with_compliance, shared, muscle, cols, colmask, free, params):
+    """(JᵀJ)⁻¹ and the numerical rank of a lane fitted to all its muscle's data, at its
+    constants ``params``; the constants held there (``free`` 0: masked, or held on a bound
+    at the end) have no variance and no rank."""
+    _, _, _, _, normal = _lane_problem(spec, with_compliance, shared, muscle, 0, cols,
+                                       colmask)
+    jac = normal(params)[1] * free[None, :]
+    a = jac.T @ jac + jnp.diag(1.0 - free)
+    return jnp.linalg.inv(a) * free[:, None] * free[None, :], numerical_rank(jac)
 
 
-_fit_lanes_jit = jax.jit(_fit_lanes_impl, static_argnums=(0, 1))
+def _vmapped(lane):
+    def run(spec, with_compliance, shared, *lanes):
+        return jax.vmap(lambda *a: lane(spec, with_compliance, shared, *a))(*lanes)
+
+    return jax.jit(run, static_argnums=(0, 1))
+
+
+_solve_lanes_jit = _vmapped(_lane)
+_lane_statistics_jit = _vmapped(_lane_statistics)
 
 
 def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[dict]:
