@@ -11,17 +11,7 @@ import subprocess
 import sys
 from typing import NamedTuple
 
-# `make test` runs two worker processes on this 2-core machine (pytest-xdist), and each
-# lends its CPU device to pamid's two lane threads, its kernels and subprocesses. XLA's
-# multi-threaded Eigen kernels then spin for cores the other worker holds: a length study
-# that takes 0.8 s alone took 31 s beside notebook 04. Set before JAX starts its backend;
-# the commands and notebook kernels the tests start inherit it.
-if os.environ.get("PYTEST_XDIST_WORKER") and "xla_cpu_multi_thread_eigen" not in os.environ.get(
-        "XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen"
-                               "=false intra_op_parallelism_threads=1").strip()
-
-import jax  # noqa: E402
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
