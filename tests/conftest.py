@@ -11,13 +11,23 @@ import subprocess
 import sys
 from typing import NamedTuple
 
-import jax
-import jax.numpy as jnp
-import numpy as np
-import pandas as pd
-import pytest
+# `make test` runs as many worker processes as the machine has cores (pytest-xdist). Each
+# worker, and the commands and notebook kernels it starts, keeps to a core of its own:
+# unpinned, each worker's lane threads and XLA's kernels also ran on the other's core, and a
+# length study that takes 0.8 s alone took 25-31 s beside notebook 04. Before JAX starts.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER.startswith("gw") and hasattr(os, "sched_setaffinity"):
+    _cores = sorted(os.sched_getaffinity(0))
+    if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0")) == len(_cores) > 1:
+        os.sched_setaffinity(0, {_cores[int(_WORKER[2:]) % len(_cores)]})
 
-import pamid
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
+
+import pamid  # noqa: E402
 
 assert jax.config.jax_enable_x64, "pamid must switch on float64 at import"
 assert jnp.asarray(1.0).dtype == jnp.float64
