@@ -100,11 +100,15 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         first = order[np.minimum(starts, n - 1)]
     empty = counts == 0
     first = np.where(empty, 0, first)
+    full = order is None and n == m * n_max  # every muscle one block of n_max rows
+    flat = None if full else codes * n_max + pos  # where each row goes in the (m, n_max) batch
 
     def scatter(values, fill, dtype=np.float64):
+        if full:  # the rows are the batch already, row-major
+            return np.broadcast_to(np.asarray(values, dtype=dtype), (n,)).reshape(m, n_max)
         out = np.empty((m, n_max), dtype=dtype)
         out[...] = fill
-        out[codes, pos] = values
+        out.reshape(-1)[flat] = values
         return out
 
     xs = []
