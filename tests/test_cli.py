@@ -68,6 +68,26 @@ def test_fit_json_schema(two_muscle_csv, env, tmp_path):
     assert two_muscle_csv.read_bytes() == before
 
 
+def test_the_process_ends_with_the_commands_exit_code_and_whole_output(two_muscle_csv, env,
+                                                                        tmp_path):
+    """The command ends its process without the interpreter's teardown (_cli._end_process):
+    stdout is complete, stderr has its lines, the exit code is the command's; a caller that
+    runs a command in its own process through ``main`` gets the code back."""
+    res = run(["fit", str(two_muscle_csv), "--json", "--intervals", "wald"], env)
+    assert res.returncode == 0, res.stderr
+    assert len(json.loads(res.stdout)["muscles"]) == 2  # the whole object, flushed
+    bad = tmp_path / "bad.csv"
+    bad.write_text("pressure_kPa,force_N,contraction_pct\n100,abc,1\n")
+    res = run(["fit", str(bad), "--json"], env)
+    assert res.returncode == 2 and "row 1" in res.stderr and "'abc'" in res.stderr
+    script = ("from pamid._cli import main\n"
+              f"code = main(['fit', {str(bad)!r}, '--json'])\n"
+              "print('still here', code)\n")
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         env=env, timeout=600)
+    assert res.returncode == 0 and res.stdout.strip() == "still here 2", res.stderr
+
+
 def test_fit_table_and_bootstrap(two_muscle_csv, env):
     res = run(["fit", str(two_muscle_csv), "--bootstrap", "200", "--intervals", "wald"], env)
     assert res.returncode == 0, res.stderr
