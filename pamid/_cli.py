@@ -422,7 +422,7 @@ def console_main() -> None:
     The command owns its process, so it picks pyarrow's memory pool before pyarrow is
     loaded (a user's ``ARROW_DEFAULT_MEMORY_POOL`` wins): the system allocator. With
     pyarrow's default on Linux (mimalloc), reading the 10,000-muscle file of
-    ``benchmarks/end_to_end.py`` took 0.49–1.21 s from one fresh process to the next; with
+    ``benchmarks/end_to_end.py`` took 0.49–1.29 s from one fresh process to the next; with
     the system's, 0.60–0.68 s (benchmarks/README.md)."""
     os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
     code = main()
