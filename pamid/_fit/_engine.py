@@ -5,9 +5,10 @@ Every least-squares problem that pamid solves with its own loop goes through
 constants held by a mask so that every effect set of a batch has the same shape), the
 free-decay trajectory fits (linear, :mod:`pamid._decays._analysis`; with friction,
 :mod:`pamid._decays._coulomb`) and the joint's decay fits
-(:mod:`pamid._decays._joint_fit`). Static force laws are solved by optimistix or jaxopt
-(``_least_squares``, where the solver is the user's choice), or by a model's registered
-written-out kernels (Sárosi's Gauss–Newton).
+(:mod:`pamid._decays._joint_fit`), and the static fits within bounds
+(``_least_squares._solve_in_bounds``). Static force laws without bounds are solved by
+optimistix or jaxopt (``_least_squares``, where the solver is the user's choice), or by a
+model's registered written-out kernels (Sárosi's Gauss–Newton).
 
 The method: Levenberg–Marquardt with Marquardt's scaling (the damping proportional to the
 diagonal of JᵀJ) and Nielsen's damping update (H. B. Nielsen, "Damping parameter in

@@ -7,13 +7,14 @@ optimistix's, from the model's start. Under a batched loop every lane runs until
 converges, so what matters for the batch is that no lane needs many steps; from a
 variable-projection start none does. Levenberg–Marquardt and jaxopt's Levenberg–Marquardt
 (from the 24-point variable-projection start) and pure variable projection are available
-for comparison, and jaxopt's L-BFGS-B for fits with bounds on the constants.
+for comparison; fits with bounds on the constants run pamid's one Levenberg–Marquardt
+loop with projected bounds (``_engine.py``).
 
 :func:`fit_lanes` (what ``fit_least_squares`` runs) adds several starts and physical
 bounds around :func:`solve`: the top start candidates of a model as extra lanes of one
 batched solve, a second try from several starts for lanes one start did not serve, and a
-refit within the bounds of only the lanes whose constants left them (the constants that
-left held on their bound, the others fitted freely; L-BFGS-B where that is not enough).
+refit within the bounds of only the lanes whose constants left them (a constant held on its
+bound while its gradient points out of the box).
 """
 
 from __future__ import annotations
@@ -94,57 +95,27 @@ def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
 
 
 @functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
-def _solve_bounded(spec, theta0, x, y, w, lower, upper, max_steps):
-    """Bounded fits with jaxopt's L-BFGS-B, in coordinates scaled by the Jacobian at the start."""
-
-    import jaxopt  # jaxopt adds what optimistix lacks here: box bounds (L-BFGS-B)
-
-    def one(theta0, x, y, w):
-        jac = jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta0)
-        scale = 1.0 / jnp.maximum(jnp.sqrt(jnp.sum(jac**2, axis=0)), 1e-300)
-
-        def objective(u):
-            r = residuals(spec, u * scale, x, y, w)
-            return 0.5 * jnp.sum(r**2)
-
-        solver = jaxopt.LBFGSB(fun=objective, maxiter=max_steps, tol=1e-12)
-        u0 = jnp.clip(theta0, lower, upper) / scale
-        out = solver.run(u0, bounds=(lower / scale, upper / scale))
-        # Scaled coordinates can land one rounding unit outside a bound: clip back.
-        theta = jnp.clip(out.params * scale, lower, upper)
-        return theta, out.state.iter_num < max_steps, out.state.iter_num
-
-    return jax.vmap(one)(theta0, x, y, w)
-
-
-@functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
-def _solve_fixed(spec, theta0, fixed, x, y, w, max_steps):
-    """Every lane with the constants ``fixed`` (M, p) held at their start values, the others
-    fitted without bounds by pamid's one masked loop
-    (:func:`pamid._fit._engine.levenberg_marquardt`). The active-set step of a bounded fit:
-    constants that left their bounds held on them.
-
-    Returns (theta, ok, steps): ``ok`` also asks that the held point be a constrained
-    optimum (Karush–Kuhn–Tucker): the sum of squares must not fall when a held constant
-    moves back into the interior, i.e. its gradient points out of the bounds (≥ 0 for a
-    constant held from below, where θ0 is above the value the free fit wanted, and ≤ 0 for
-    one held from above; the side is the sign of the step the free fit took past it)."""
+def _solve_in_bounds(spec, theta0, x, y, w, lower, upper, max_steps):
+    """Every lane fitted within the box [``lower``, ``upper``] from ``theta0`` clipped into
+    it, by pamid's one masked loop with projected bounds
+    (:func:`pamid._fit._engine.levenberg_marquardt`): a constant on a bound whose gradient
+    points out of the box is held there, one whose gradient points back in is free again,
+    so a converged lane is a constrained optimum (Karush–Kuhn–Tucker)."""
     from ._engine import CONVERGED, levenberg_marquardt
 
-    def one(theta0, fixed, x, y, w):
+    def one(theta0, x, y, w):
         def linearise(th):
             jac, r = jax.jacfwd(lambda t: (residuals(spec, t, x, y, w),) * 2,
                                 has_aux=True)(th)
             return r, jac
 
-        mask = jnp.where(fixed, 0.0, 1.0)
-        sol = levenberg_marquardt(linearise, theta0, mask, max_steps=max_steps, rtol=1e-12,
-                                  floor=jnp.sum(w > 0) * 1e-20)
-        r, jac = linearise(sol.params)
-        grad = jac.T @ r  # ½·∂SSE/∂θ, held constants included
-        return sol.params, sol.result == CONVERGED, sol.steps, grad
+        p0 = jnp.clip(theta0, lower, upper)
+        sol = levenberg_marquardt(linearise, p0, jnp.ones_like(p0), max_steps=max_steps,
+                                  rtol=1e-12, floor=jnp.sum(w > 0) * 1e-20,
+                                  bounds=(lower, upper))
+        return sol.params, sol.result == CONVERGED, sol.steps
 
-    return jax.vmap(one)(theta0, fixed, x, y, w)
+    return jax.vmap(one)(theta0, x, y, w)
 
 
 @functools.partial(jax.jit, static_argnames=("spec",))
@@ -222,8 +193,8 @@ def solve(
         if bool(jnp.any(lower > upper)):
             raise ValueError("every lower bound must be at most its upper bound")
         theta, ok, steps = map_lanes(
-            lambda t0, x, y, w: _solve_bounded(
-                spec, t0, x, y, w, lower, upper, max_steps=max(max_steps, 500)
+            lambda t0, x, y, w: _solve_in_bounds(
+                spec, t0, x, y, w, lower, upper, max_steps=max(max_steps, 200)
             ),
             theta0, data.x, data.y, data.w,
         )
@@ -571,8 +542,9 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     2. Lanes that did not converge or left the bounds (``bounds``, else the model's physical
        ``spec.bounds``) start again from the top :data:`RETRY_STARTS` candidates (for
        Sárosi: trial values of a3 within its bounds).
-    3. Lanes still outside the bounds are refitted within them (jaxopt's L-BFGS-B) from the
-       clipped point and the candidates, the best kept; constants on a bound are marked.
+    3. Lanes still outside the bounds are refitted within them from the clipped point by the
+       one loop with projected bounds (:func:`_solve_in_bounds`); constants on a bound are
+       marked.
        A lane whose fit without bounds found no determined optimum is marked as ran away.
     """
     k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
@@ -628,8 +600,9 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     lanes = np.flatnonzero(left)
     if lanes.size:
         sub = _take_lanes(data, lanes)
-        # 3a. The constants that left their bounds held on them, the others fitted freely
-        # (an active-set step; for a model linear in the others, one solve).
+        # 3. Within the bounds, from the clipped point (the candidates where it is not
+        # finite): the one loop with projected bounds, which holds a constant on its bound
+        # while the gradient points out of the box.
         start = np.clip(theta[lanes], lower, upper)
         cands = None
         if not np.all(np.isfinite(start)):
@@ -639,27 +612,8 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
                                              0.5 * (lower + upper), np.clip(0.0, lower, upper)),
                                     start.shape))
             start = np.where(np.isfinite(start), start, best)
-        with np.errstate(invalid="ignore"):
-            held = (theta[lanes] < lower) | (theta[lanes] > upper) | ~np.isfinite(theta[lanes])
-        tb, okb, stb, grad = map_lanes(
-            lambda t0, f, x, y, w: _solve_fixed(spec, t0, f, x, y, w, max_steps),
-            jnp.asarray(start), jnp.asarray(held), sub.x, sub.y, sub.w)
-        tb, okb, stb, grad = (np.array(a) for a in (tb, okb, stb, grad))
-        # A held constant whose gradient points into the bounds is no constrained optimum:
-        # letting it go lowers the sum of squares (the free fit ran past the bound far from
-        # where the bounded optimum is).
-        with np.errstate(invalid="ignore"):
-            inward = held & (((tb <= lower) & (grad < 0)) | ((tb >= upper) & (grad > 0)))
-        # 3b. Where that left another constant outside, failed, or stopped on a bound that
-        # is not the optimum's: L-BFGS-B within the bounds, from the clipped point.
-        redo = np.flatnonzero(outside(tb) | ~okb | inward.any(axis=-1))
-        if redo.size:
-            sub2 = _take_lanes(sub, redo)
-            t3, ok3, st3 = solve(spec, sub2, theta0=np.clip(np.where(np.isfinite(tb[redo]),
-                                                                      tb[redo], start[redo]),
-                                                             lower, upper),
-                                 bounds=(lower, upper), max_steps=max_steps)
-            tb[redo], okb[redo], stb[redo] = t3, ok3, stb[redo] + st3
+        tb, okb, stb = solve(spec, sub, theta0=start, bounds=(lower, upper),
+                             max_steps=max_steps)
         theta[lanes], ok[lanes], steps[lanes] = tb, okb, steps[lanes] + stb
         width = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
         tol = 1e-9 * np.maximum(width, np.maximum(np.abs(np.where(np.isfinite(lower), lower, 0)),

@@ -11,8 +11,8 @@ virtual CPU devices; see docs/devices.md):
 
 - a mesh with ``AxisType.Auto`` (GSPMD-style propagation from the inputs' sharding) runs
   every solver path (optimistix Gauss–Newton and Levenberg–Marquardt, jaxopt's
-  Levenberg–Marquardt and L-BFGS-B, variable projection), the statistics and the profile
-  intervals;
+  Levenberg–Marquardt and the L-BFGS-B that bounded fits used then, variable projection),
+  the statistics and the profile intervals;
 - ``jax.make_mesh`` defaults to ``AxisType.Explicit`` axes, under which the optimistix fit
   fails in equinox's closure conversion ("Closure-converted function called with different
   dynamic arguments") and the jaxopt fit with "Resource axis: lanes ... is not found in
