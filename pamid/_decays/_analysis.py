@@ -113,7 +113,7 @@ import numpy as np
 import scipy.linalg
 
 from .._errors import BenchDataError
-from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
 from .._fit._intervals import t_critical, wald_interval
 from .._io import json_ready as _plain
 from .._sim._oscillator import DampedOscillator, oscillator_response
@@ -862,11 +862,7 @@ def _model_angle(theta, t):
 @functools.partial(jax.jit, static_argnames=("max_steps",))
 def _fit_batch(p0, scale, t, y, w, max_steps):
     def one(p0, scale, t, y, w):
-        def linearise(p):
-            jac, r = jax.jacfwd(
-                lambda q: (w * (_model_angle(q * scale, t) - y),) * 2, has_aux=True)(p)
-            return r, jac
-
+        linearise = linearised(lambda q: w * (_model_angle(q * scale, t) - y))
         # pamid's one least-squares loop; the step would lower the SSE by at most 1e-12 of
         # itself plus (1e-12 rad)² per sample.
         sol = levenberg_marquardt(linearise, p0, jnp.ones_like(p0), max_steps=max_steps,

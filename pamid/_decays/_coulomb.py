@@ -78,7 +78,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._effects._definitions import DECAY_EFFECTS as _EFFECT_DEFINITIONS
-from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
 from .._fit._intervals import wald_interval
 from .._sim._oscillator import cos_sinc
 from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
@@ -240,7 +240,7 @@ def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
             return _response(p * scale, t, n_half) - y
 
         def linearise(p):
-            jac, r = jax.jacfwd(lambda q: (model_minus_data(q),) * 2, has_aux=True)(p)
+            r, jac = linearised(model_minus_data)(p)
             rw = jnp.where(w > 0, w * r, 0.0)  # NaN-safe: padding never counts
             jw = jnp.where(w[:, None] > 0, w[:, None] * jac, 0.0)
             return rw, jw

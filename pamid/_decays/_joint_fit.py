@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
 from .._fit._intervals import wald_interval
 from .._sim._joint_sim import JointArm, arm_rhs, sealed_pressure_laws
 from .._sim._oscillator import rk4_scan
@@ -88,11 +88,7 @@ def _fit_batch(arm, names, method, p0, scale, y, w, dt, n, substeps, rtol, atol,
         return _simulate_angle(arm, g, b0, v0, s, dt, n, substeps) + off
 
     def one(p0, scale, y, w):
-        def linearise(q):
-            jac, r = jax.jacfwd(lambda qq: (w * (model(qq * scale) - y),) * 2,
-                                has_aux=True)(q)
-            return r, jac
-
+        linearise = linearised(lambda q: w * (model(q * scale) - y))
         sol = levenberg_marquardt(linearise, p0, jnp.ones_like(p0), max_steps=max_steps,
                                   rtol=rtol, floor=jnp.sum(w > 0) * atol**2,
                                   damping0=_DAMPING0[method])

@@ -360,8 +360,8 @@ def fit_least_squares(
         bounds: optional (lower, upper) arrays of the constants (±inf where none), in place
             of the model's physical bounds (``spec.bounds``). The fit runs without bounds
             first; only muscles whose constants leave the bounds are refitted within them
-            (pamid's one loop with projected bounds), and a constant on a bound is marked (status "at_bound", or
-            "not_identifiable" where the fit without bounds ran off).
+            (pamid's one loop with projected bounds), and a constant on a bound is marked
+            (status "at_bound", or "not_identifiable" where the fit without bounds ran off).
         level: coverage of the intervals (0.95).
         starts: starts per muscle from the model's start candidates
             (``_least_squares.DEFAULT_STARTS``, one, by default); muscles that one start
