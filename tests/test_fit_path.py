@@ -301,6 +301,28 @@ def test_fit_json_writes_the_text_json_dumps_writes(small_bench):
     assert json.loads(fit_json(fit))["muscles"][0]["params"]["a2"]["value"] is None
 
 
+def test_the_json_floats_are_python_floats_repr_at_every_magnitude():
+    """The column-wise float writer of ``fit_json`` gives ``json.dumps``'s text of every
+    float64: shortest digits, Python's exponent style, '.0' on whole numbers, -0.0, the
+    edges of the range pyarrow writes, subnormals, and null for NaN and ±inf."""
+    import json
+
+    from pamid._report._fit import _json_floats
+
+    rng = np.random.default_rng(7)
+    mantissa = np.array([round(m, int(d)) for m, d in zip(rng.uniform(1, 10, 4000),
+                                                          rng.integers(0, 17, 4000))])
+    values = np.concatenate([
+        mantissa * 10.0 ** rng.integers(-12, 20, 4000),
+        -mantissa * 10.0 ** rng.integers(-330, 300, 4000),
+        rng.normal(size=2000) * np.exp(rng.normal(size=2000) * 10),
+        [0.0, -0.0, 1e-4, np.nextafter(1e-4, 0), 1e10, np.nextafter(1e10, 0), 100.0,
+         -3.0, 5e-324, 1e16, 123456789.0, np.nan, np.inf, -np.inf],
+    ])
+    expected = [json.dumps(float(v)) if np.isfinite(v) else "null" for v in values]
+    assert _json_floats(values).to_pylist() == expected
+
+
 @pytest.mark.parametrize(("rows", "why"), [
     ("".join(f"{100 * (1 + k % 3)},{800 - 30 * k},{k}\n" for k in range(5)), "too few rows: 5"),
     ("300,500,5\n" * 20, "cannot determine all 6 constants"),
