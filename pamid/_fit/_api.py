@@ -322,7 +322,7 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
     codes = pd.factorize(frame["muscle"], sort=False)[0]
     x = spec.x_from_frame(frame, bench.path)
     y = frame["force_N"].to_numpy(dtype=np.float64)
-    curve = bench.curves.curve if curves else np.zeros(len(frame), dtype=np.int64)
+    curve = bench.curves.curve if curves else None  # None: every row in curve 0
     return pack_rows(codes, x, y, curve, n_muscles=len(bench.muscles))
 
 
