@@ -494,7 +494,9 @@ def test_chunked_lanes_equal_one_call(small_bench, monkeypatch):
     import pamid._fit._batch as batch
 
     whole = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
-    monkeypatch.setattr(batch, "CHUNK_LANES", 2)  # 3 muscles: a chunk of 2 and a padded one
+    # 3 muscles: lanes 0-1, then lanes 1-2 (on the CPU) or lane 2 padded (elsewhere).
+    monkeypatch.setattr(batch, "CHUNK_LANES", 2)
+    monkeypatch.setattr(batch, "CPU_CHUNK_LANES", 2)
     chunked = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
     np.testing.assert_allclose(chunked.theta, whole.theta, rtol=1e-12)
     np.testing.assert_allclose(chunked.ci95, whole.ci95, rtol=1e-12)

@@ -159,14 +159,22 @@ def _dense_within(codes, ids, order) -> np.ndarray:
 #: needed 3.6 and 8.7 GB. (The profile intervals now take 12 ends per muscle as lanes, in
 #: chunks of as many muscles as make ``CPU_CHUNK_LANES`` ends on the CPU.)
 CHUNK_LANES = 2048
+#: Lanes per compiled call on the CPU: a chunk's arrays (1.2 MB each at 300 samples) stay
+#: in the caches, and every core gets chunks of its own (1000 muscles: two calls side by
+#: side); 512 was the fastest chunk of the Sárosi kernels measured at 10,000 muscles and no
+#: slower than one call at 1000 (benchmarks/README.md, "Figures that used to live in
+#: docstrings", (c)).
+CPU_CHUNK_LANES = 512
 
 
 def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = None):
     """Apply ``fn`` to the arrays (pytrees with a leading lane axis) in chunks of lanes.
 
-    Every chunk has the same size (the last is padded by repeating its final lane, and the
-    padding is dropped), so ``fn`` compiles once. Outputs are pytrees of arrays with a
-    leading lane axis, concatenated as NumPy arrays.
+    Every chunk has the same size, so ``fn`` compiles once: on one device the last chunk
+    is the last ``chunk`` lanes (those the chunk before it holds too are dropped from its
+    outputs), on several it is padded by repeating its final lane. ``fn`` must treat its
+    lanes independently. Outputs are pytrees of arrays with a leading lane axis,
+    concatenated as NumPy arrays.
 
     With several devices (:func:`pamid._fit._sharding.lane_devices`: all of this process's
     GPUs, or those chosen with ``use_devices``) every chunk holds up to ``chunk`` lanes per
@@ -179,17 +187,19 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     """
     import jax
 
-    chunk = CHUNK_LANES if chunk is None else chunk
     leaves = jax.tree.leaves(arrays)
     n = leaves[0].shape[0]
     devices = lane_devices()
     if len(devices) > 1:
-        return _map_lanes_sharded(fn, arrays, n, chunk, devices)
+        return _map_lanes_sharded(fn, arrays, n, CHUNK_LANES if chunk is None else chunk,
+                                  devices)
     # One device picked with use_devices or jax.default_device: run there, named in every
     # worker thread (jax.default_device is a per-thread setting).
     pinned = chosen_devices() is not None or jax.config.jax_default_device is not None
     device = devices[0] if pinned else None
     workers = _cpu_workers() if devices[0].platform == "cpu" else 1
+    if chunk is None:
+        chunk = CPU_CHUNK_LANES if devices[0].platform == "cpu" else CHUNK_LANES
     if cache_key is not None:
         fn = functools.partial(_export_cache.call, cache_key, fn)
     return _map_lanes_one_device(fn, arrays, n, chunk, device, workers)
@@ -203,17 +213,20 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
     starts = range(0, n, chunk)
 
     def run(start):
-        stop = min(start + chunk, n)
-        # Contiguous slices (a gather of the same lanes is slower: benchmarks/README.md,
-        # "Figures that used to live in docstrings", (d)); the last chunk is padded by its
-        # final lane.
-        part = jax.tree.map(lambda a: _lanes(a, start, stop, chunk), arrays)
+        # Contiguous slices, no copies (a gather of the same lanes is slower:
+        # benchmarks/README.md, "Figures that used to live in docstrings", (d)): the last
+        # chunk is the last ``chunk`` lanes, and the outputs of those that the chunk before
+        # it holds too are dropped. (The lanes are independent, so they come out the same
+        # in either chunk; padding the last chunk by copying cost 1 ms of a 13 ms fit of
+        # 1000 muscles.)
+        first = min(start, n - chunk)
+        part = jax.tree.map(lambda a: a[first : first + chunk], arrays)
         if device is None:
             out = fn(*part)
         else:
             with jax.default_device(device):
                 out = fn(*part)
-        return jax.tree.map(lambda a: np.asarray(a)[: stop - start], out)
+        return jax.tree.map(lambda a: np.asarray(a)[start - first :], out)
 
     workers = min(len(starts), workers)
     if workers > 1:

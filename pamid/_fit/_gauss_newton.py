@@ -46,12 +46,6 @@ import numpy as np
 from ._rank import RANK_PIVOT  # the one rank criterion of pamid's fits (``_rank``)
 from ._variable_projection import _parabolic_trial, _shrink_bracket, _small_cholesky_solve
 
-#: Lanes per compiled call on the CPU (``map_lanes`` chunks): a chunk's arrays (1.2 MB each
-#: at 300 samples) stay in the caches; 512 was the fastest chunk measured at 10,000 muscles
-#: and no slower than one call at 1000 (benchmarks/README.md, "Figures that used to live
-#: in docstrings", (c)).
-CPU_CHUNK_LANES = 512
-
 #: Largest subsample of a muscle scanned for the start (evenly spaced over its samples).
 START_SAMPLES = 64
 #: Most strides for which the subsample is taken by strided slices (see ``_subsample``).

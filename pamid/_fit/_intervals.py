@@ -32,7 +32,11 @@ def t_critical(dof, level: float = 0.95):
     from scipy.special import stdtrit
 
     dof = np.asarray(dof, float)
-    return np.where(dof > 0, stdtrit(np.maximum(dof, 1), 0.5 + level / 2), np.nan)
+    # Once per distinct dof (the muscles of a file mostly share a few): stdtrit took 0.3 ms
+    # for 1000 equal values, 2 % of a fit of 1000 muscles.
+    distinct, where = np.unique(np.maximum(dof, 1), return_inverse=True)
+    t = stdtrit(distinct, 0.5 + level / 2)[where].reshape(dof.shape)
+    return np.where(dof > 0, t, np.nan)
 
 
 def wald_interval(value, se, dof, level: float = 0.95):

@@ -26,8 +26,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _batch
 from ._batch import FitData, map_lanes
-from ._gauss_newton import CPU_CHUNK_LANES
 from ._rank import RANK_RTOL
 from ._spec import ModelSpec, builtin_key
 
@@ -239,9 +239,9 @@ _TRACING_ERRORS = (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayCon
 
 
 def _sarosi_chunk() -> int | None:
-    """Lanes per call of the written-out Sárosi kernels: ``CPU_CHUNK_LANES`` on the CPU (the
-    arrays of a chunk stay in the caches), ``map_lanes``'s default elsewhere."""
-    return CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None
+    """Lanes per call of the written-out Sárosi kernels: ``_batch.CPU_CHUNK_LANES`` on the
+    CPU (the arrays of a chunk stay in the caches), ``map_lanes``'s default elsewhere."""
+    return _batch.CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None
 
 
 def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
