@@ -120,6 +120,40 @@ def test_wald_intervals_cover_the_true_constants_on_virtual_muscles(tmp_path):
     np.testing.assert_allclose(result.theta[0], direct, rtol=1e-9, atol=1e-9)
 
 
+def test_a_linear_law_is_solved_in_one_step_and_kept_within_bounds(tmp_path):
+    """A model linear in every constant is fitted by its one Gauss–Newton step (the
+    weighted least-squares solve): one step, the optimum of an iterated fit; where the
+    optimum lies past a bound, the bounded loop takes over and marks the constant."""
+    bench = _load(_sweeps(Quadratic(**TRUE), 3, np.random.default_rng(4)), tmp_path)
+    spec = get_model(Quadratic)
+    free = pamid.fit_least_squares(bench, Quadratic)
+    assert free.converged.all() and (free.n_steps == 1).all()
+    data = pamid.bench_to_fit_data(bench, Quadratic)
+    iterated = pamid.engine.solve(spec, data, theta0=free.theta + 1.0)  # optimistix, iterated
+    np.testing.assert_allclose(free.theta, iterated[0], rtol=1e-10)
+    bounded = pamid.fit_least_squares(bench, Quadratic, bounds=(
+        np.array([-np.inf, -np.inf, -np.inf, -np.inf]), np.array([np.inf, np.inf, -13.0, np.inf])))
+    assert (bounded.theta[:, 2] == -13.0).all()
+    assert set(bounded.status) == {"at_bound"}
+
+
+def test_a_start_first_made_inside_a_trace_holds_no_tracer():
+    """The generic start is made on first use and kept by the spec; made while a caller is
+    traced (an exported program, say), it must hold no tracer for the calls after."""
+
+    class Fresh(Decaying):
+        pass
+
+    spec = get_model(Fresh)
+    spec.linear()  # known before the trace, as fit_lanes asks it
+    x = (jnp.linspace(1.0, 5.0, 40)[None], jnp.linspace(0.0, 20.0, 40)[None])
+    y = 100.0 * x[0] * jnp.exp(-0.1 * x[1]) + 3.0
+    w = jnp.ones_like(y)
+    traced = jax.jit(lambda x, y, w: spec.candidates(x, y, w)[0])(x, y, w)
+    again = spec.candidates(x, y, w)[0]  # an UnexpectedTracerError here was the leak
+    np.testing.assert_allclose(again, traced, rtol=1e-12)
+
+
 def test_a_nonlinear_law_starts_by_itself_far_from_its_defaults(tmp_path):
     truth = Decaying(a=300.0, b=-0.3, c=-40.0)  # defaults: a = 1, b = -0.05, c = 0
     bench = _load(_sweeps(truth, 3, np.random.default_rng(5), noise=1.0), tmp_path)

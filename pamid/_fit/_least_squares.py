@@ -526,6 +526,25 @@ def _jacobian_rows(spec, theta, data: FitData, i: int) -> np.ndarray:
     return jac[w > 0]
 
 
+def _linear_in_all(spec: ModelSpec) -> bool:
+    """Whether ``spec`` is linear in every constant (pamid's start knows it: ``spec.linear``;
+    False for a model that brings its own start or kernels)."""
+    return spec.fast_path is None and spec.linear is not None and bool(np.all(spec.linear()))
+
+
+def _linear_fit(spec: ModelSpec, data: FitData):
+    """``(theta, converged, n_steps)`` of a model linear in every constant: its weighted
+    least-squares fit without bounds, from the start's solve (:mod:`._start`: normal
+    equations refined once, or an SVD), which is the Gauss–Newton step that reaches the
+    optimum of a linear model from any point. One step; converged where finite (a design
+    that cannot determine a constant is found by :func:`statistics`' rank test)."""
+    theta = map_lanes(lambda x, y, w: spec.candidates(x, y, w, clip=False)[0][:, 0],
+                      data.x, data.y, data.w, cache_key=_key("linear_fit", spec))
+    theta = np.asarray(theta)
+    ok = np.all(np.isfinite(theta), axis=-1)
+    return theta, ok, np.ones(len(theta), dtype=np.int64)
+
+
 def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", bounds=None,
               starts: int | None = None, theta0=None, max_steps: int = 100,
               rtol: float = 1e-10, atol: float = 1e-10) -> LaneFit:
@@ -546,9 +565,15 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     k_retry = max(k, RETRY_STARTS)
     lower, upper = bounds_arrays(spec, bounds)
     out = None
-    if theta0 is None and k > 1 and not (solver == "gauss-newton" and spec.fast_path is not None):
+    # A model linear in every constant has one optimum, solved without iterating.
+    linear = (theta0 is None and solver in ("gauss-newton", "levenberg-marquardt")
+              and _linear_in_all(spec))
+    if linear:
+        out = _linear_fit(spec, data)
+    elif theta0 is None and k > 1 and not (solver == "gauss-newton"
+                                           and spec.fast_path is not None):
         out = _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower, upper)
-    several = out is not None  # already from several starts: no second try below
+    several = out is not None  # already from several starts (or solved): no second try below
     if out is None:
         out = solve(spec, data, solver=solver, theta0=theta0, max_steps=max_steps,
                     rtol=rtol, atol=atol)
@@ -563,7 +588,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     # 2. Another try from several starts for the lanes one start did not serve.
     out_now = outside(theta)
     retry = np.flatnonzero(~ok | out_now)
-    if (retry.size and theta0 is None and not (several and k >= k_retry)
+    if (retry.size and theta0 is None and not linear and not (several and k >= k_retry)
             and solver in ("gauss-newton", "levenberg-marquardt")):
         sub = _take_lanes(data, retry)
         cands = start_candidates(spec, sub, bounds)

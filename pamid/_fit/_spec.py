@@ -66,9 +66,12 @@ class ModelSpec:
         output: the fitted quantity and its unit (force in N for the static models).
         bounds: physical (lower, upper) of each constant (±inf where none), or None.
         fast_path: the model's registered written-out kernels, or None.
-        candidates: ``candidates(x, y, w) -> (theta (M, K, p), sse (M, K))``, start
-            candidates best first (:mod:`._start`), or None where the model brings its own
-            start.
+        candidates: ``candidates(x, y, w, clip=True) -> (theta (M, K, p), sse (M, K))``,
+            start candidates best first (:mod:`._start`; ``clip``: into the bounds), or None
+            where the model brings its own start.
+        linear: ``linear() -> mask (p,)``, the constants the model is linear in (found on
+            first use, :func:`._start.linear_constants`), or None where the model brings
+            its own start.
         model_class: the :class:`~pamid.ForceModel` the spec was made from, or None.
         prior: uniform priors ``{name: (low, high)}`` declared by the model, for MCMC.
     """
@@ -87,6 +90,7 @@ class ModelSpec:
     bounds: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     fast_path: FastPath | None = None
     candidates: Callable | None = None
+    linear: Callable | None = None
     model_class: type | None = None
     prior: dict | None = None
 
@@ -219,18 +223,25 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
         return cls(**{n: theta[..., i] for i, n in enumerate(names)}, **fixed)
 
     own_start = getattr(cls, "start", None)
-    candidates = None
+    candidates = linear_mask = None
     if start is None and own_start is not None:
         def start(x, y, w):
             return own_start(x, y, w)
     elif start is None:
         @functools.cache
-        def design():
+        def linear_mask():
             # Found on first use (it traces the model), not when the spec is made.
-            from ._start import linear_constants, projected_candidates, trial_values
+            from ._start import linear_constants
 
             reference = [float(defaults.get(n, 1.0)) for n in names]
-            linear = linear_constants(predict, len(names), taken, reference)
+            return linear_constants(predict, len(names), taken, reference)
+
+        @functools.cache
+        def design():
+            from ._start import projected_candidates, trial_values
+
+            reference = [float(defaults.get(n, 1.0)) for n in names]
+            linear = linear_mask()
             lacking = [n for n, lin in zip(names, linear) if not lin and n not in defaults]
             if lacking:
                 raise ModelDefinitionError(
@@ -239,8 +250,8 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
             trials = trial_values(reference, lower, upper, ~linear)
             return projected_candidates(predict, linear, trials, lower, upper)
 
-        def candidates(x, y, w):
-            return design()(x, y, w)
+        def candidates(x, y, w, clip=True):
+            return design()(x, y, w, clip=clip)
 
         def start(x, y, w):
             return candidates(x, y, w)[0][:, 0]
@@ -263,6 +274,7 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
         bounds=bounds,
         fast_path=fast_path,
         candidates=candidates,
+        linear=linear_mask,
         model_class=cls,
         prior=dict(cls.prior) or None,
     )

@@ -109,16 +109,20 @@ def trial_values(defaults, lower, upper, nonlinear: np.ndarray) -> np.ndarray:
 
 #: Smallest Cholesky pivot of a trial's equilibrated normal matrix (unit diagonal) for which
 #: the start solves the linear constants from the normal equations, written out
-#: (:func:`pamid._fit._variable_projection._small_cholesky_solve`; relative error about
-#: 1e-16 / pivot, 1e-8 at worst). Where a lane of a batch has a smaller one (dependent
-#: columns, a constant the data do not see), the whole batch is solved by an SVD instead.
+#: (:func:`pamid._fit._variable_projection._small_cholesky_solve`), then refined once with the
+#: residual of the design itself (corrected semi-normal equations, Björck 1996, §2.8.4): the
+#: error of the normal equations alone, about 1e-16 / pivot, is squared away. Where a lane
+#: of a batch has a smaller pivot (dependent columns, a constant the data do not see), the
+#: whole batch is solved by an SVD instead.
 CHOLESKY_PIVOT = 1e-8
 
 
 def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower, upper):
-    """A batched start function ``(x, y, w) -> (theta (M, K, p), sse (M, K))``, candidates
-    sorted best first, each with its linear constants solved by weighted least squares
-    for the trial values of the others, then clipped into the bounds.
+    """A batched start function ``(x, y, w, clip=True) -> (theta (M, K, p), sse (M, K))``,
+    candidates sorted best first, each with its linear constants solved by weighted least
+    squares for the trial values of the others, then clipped into the bounds (unless
+    ``clip`` is False). For a model linear in every constant the one candidate is the
+    weighted least-squares fit itself, and with ``clip=False`` the fit without bounds.
 
     The least-squares problems (columns scaled to unit length) are solved from their normal
     equations by an unrolled Cholesky, a few dozen elementwise operations across the batch:
@@ -129,10 +133,13 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
     which tolerates a rank-deficient design (a constant the data do not see stays at 0)."""
     from ._variable_projection import _small_cholesky_solve
 
-    lin = jnp.asarray(np.flatnonzero(linear))
+    # NumPy constants, not JAX arrays: the spec keeps this function, and it may first be
+    # made while a caller is being traced (a JAX array made then would be a tracer that
+    # leaks into every later call).
+    lin = np.flatnonzero(linear)
     n_lin = int(np.sum(linear))
-    trials = jnp.asarray(trials)
-    lower, upper = jnp.asarray(lower), jnp.asarray(upper)
+    trials = np.asarray(trials, dtype=np.float64)
+    lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
 
     def design(theta, x, y, w):
         """One trial's problem in the linear constants: base, scaled design, rhs, scale."""
@@ -148,28 +155,35 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
     def svd_solve(a, rhs):
         return jnp.linalg.lstsq(a, rhs, rcond=1e-10)[0]
 
-    def finish(theta, x, y, w):
-        theta = jnp.clip(theta, lower, upper)
+    def finish(theta, x, y, w, clip):
+        if clip:
+            theta = jnp.clip(theta, lower, upper)
         sse = jnp.sum(w * (predict(theta, x) - y) ** 2)
         return theta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
-    def each(fn, trial_axis):
+    def cholesky(gram, c):
+        return jax.vmap(jax.vmap(lambda g, c: _small_cholesky_solve(g, c, with_pivot=True)))(
+            gram, c)
+
+    def each(fn, trial_axis, *static):
         """``fn`` over the muscles (axis 0 of x, y, w) and the trials."""
-        return jax.vmap(jax.vmap(fn, in_axes=(0, None, None, None)),
+        one = lambda theta, x, y, w: fn(theta, x, y, w, *static)  # noqa: E731
+        return jax.vmap(jax.vmap(one, in_axes=(0, None, None, None)),
                         in_axes=(trial_axis, 0, 0, 0))
 
-    def batch(x, y, w):
+    def batch(x, y, w, clip=True):
         theta = jnp.broadcast_to(trials, (y.shape[0], *trials.shape))
         if n_lin:
             base, a, rhs, scale = each(design, None)(trials, x, y, w)  # (M, K, …)
             gram = jnp.einsum("mkni,mknj->mkij", a, a)
-            beta, pivot = jax.vmap(jax.vmap(
-                lambda g, c: _small_cholesky_solve(g, c, with_pivot=True)))(
-                    gram, jnp.einsum("mkni,mkn->mki", a, rhs))
+            beta, pivot = cholesky(gram, jnp.einsum("mkni,mkn->mki", a, rhs))
+            # One refinement from the design's own residual (see CHOLESKY_PIVOT).
+            left = rhs - jnp.einsum("mkni,mki->mkn", a, beta)
+            beta = beta + cholesky(gram, jnp.einsum("mkni,mkn->mki", a, left))[0]
             beta = jax.lax.cond(jnp.all(pivot > CHOLESKY_PIVOT), lambda: beta,
                                 lambda: jax.vmap(jax.vmap(svd_solve))(a, rhs))
             theta = base.at[..., lin].set(beta * scale)
-        theta, sse = each(finish, 0)(theta, x, y, w)
+        theta, sse = each(finish, 0, clip)(theta, x, y, w)
         order = jnp.argsort(sse, axis=-1)
         return (jnp.take_along_axis(theta, order[..., None], axis=1),
                 jnp.take_along_axis(sse, order, axis=1))
@@ -177,4 +191,4 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
     # Compiled once per model (the spec keeps this function): called op by op, the start
     # of a linear model took 40 times its whole fit (benchmarks/README.md, "Figures that
     # used to live in docstrings", (g)).
-    return jax.jit(batch)
+    return jax.jit(batch, static_argnames="clip")
