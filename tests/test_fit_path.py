@@ -336,3 +336,20 @@ def test_a_fit_that_cannot_be_trusted_says_why(tmp_path, rows, why):
     assert not fit.converged[0]
     assert why in fit.message(0)
     assert why in fit.to_dict()["muscles"][0]["message"]
+
+
+def test_the_t_quantile_is_scipys_for_every_shape_of_dof():
+    """One Student-t quantile per muscle, computed once when all share a dof; NaN where
+    no degree of freedom is left."""
+    from scipy.stats import t as student_t
+
+    from pamid._fit._intervals import t_critical
+
+    for dof in ([294.0] * 5, [3.0, 3.0, 0.0, -1.0, np.nan, 10.5], [[1.0, 2.0], [2.0, 1.0]],
+                7.0, [], [np.nan, np.nan]):
+        dof = np.asarray(dof, dtype=float)
+        with np.errstate(invalid="ignore"):
+            expected = np.where(dof > 0, student_t.ppf(0.975, np.maximum(dof, 1)), np.nan)
+        got = t_critical(dof, 0.95)
+        assert got.shape == dof.shape
+        np.testing.assert_allclose(got, expected, rtol=1e-12)
