@@ -60,7 +60,7 @@ from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
 from .._fit._engine import CONVERGED, levenberg_marquardt
-from .._fit._least_squares import bounds_arrays
+from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
 from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
@@ -207,6 +207,9 @@ class StaticProblem:
             curve_ids.append(c.curve)
             muscle_curves.append(c)
         self.frames = frames
+        # Each muscle's frame columns as arrays, read once (_features asks for them again
+        # for every fold and every grid value).
+        self._columns: list[dict[str, np.ndarray]] = [{} for _ in frames]
         allrows = pd.concat(frames, ignore_index=True)
         #: Numeric columns of the file not offered as covariates, with why.
         self.not_covariates = row_counters(frames, [c.trial for c in muscle_curves],
@@ -303,19 +306,19 @@ class StaticProblem:
         else:
             steps = np.zeros(len(f))
         speed = next((s for s in ("speed_mm_s", "speed_pct_s") if s in self.covariates), None)
-        base = np.asarray(self.spec.predict(self.theta0[i], x))
+        base = np.asarray(model_at(self.spec, self.theta0[i], x))
         i_p, per_kpa = _inputs(self.spec)["pressure"]
         slope = np.inf
         if per_kpa:  # ∂F/∂p in N/kPa, by a difference of 1 kPa
             up = list(x)
             up[i_p] = np.asarray(x[i_p]) + per_kpa
-            slope = float(np.max(np.asarray(self.spec.predict(self.theta0[i], tuple(up)))
+            slope = float(np.max(np.asarray(model_at(self.spec, self.theta0[i], tuple(up)))
                                  - base))
         step_slope = None
         if stepped == "contraction" and kcol in f:
             # ∂F/∂κ per unit of the file's contraction, by a difference of 0.01 unit
             up = self.spec.x_from_frame(f.assign(**{kcol: f[kcol] + 0.01}))
-            d = (np.asarray(self.spec.predict(self.theta0[i], up)) - base) / 0.01
+            d = (np.asarray(model_at(self.spec, self.theta0[i], up)) - base) / 0.01
             step_slope = float(d[np.argmax(np.abs(d))]) if len(d) else None
         return MuscleContext(
             frame=f, baseline_N=base, steps=steps, trial=np.asarray(c.trial), time_s=time,
@@ -376,15 +379,16 @@ class StaticProblem:
         the softening's r): the grid value whose column, of the allowed sign, best explains
         the baseline's residual (or that of ``fit``, for the effects ``names``) once the
         base model's own directions (and ``fit``'s linear effects') are projected out."""
+        jacs = {}  # muscle -> the base model's Jacobian, the same for every effect
         for e in self.effects:
             if e.grid is None or (names is not None and e.name not in names):
                 continue
             lower = e.definition.constants[0].lower
             for i, (m, (x, y)) in enumerate(zip(self.muscles, groups, strict=True)):
                 values = np.atleast_1d(e.definition.grid_values(self.file, m))
-                jac = np.asarray(jax.jacfwd(lambda th, x=x: self.spec.predict(th, x))(
-                    self.theta0[i]))
-                cols = [jac, np.ones(len(y))[:, None]]
+                if i not in jacs:
+                    jacs[i] = np.asarray(model_jacobian(self.spec, self.theta0[i], x))
+                cols = [jacs[i], np.ones(len(y))[:, None]]
                 if fit is None:
                     r = y - m.baseline_N
                 else:
@@ -413,9 +417,12 @@ class StaticProblem:
     def _features(self, i: int, clip: dict | None = None) -> np.ndarray:
         m = self.muscles[i]
         f = m.frame
+        raw = self._columns[i]
 
         def col(name):
-            v = f[name].to_numpy(float)
+            if name not in raw:
+                raw[name] = f[name].to_numpy(float)
+            v = raw[name]
             if clip and name in clip and name != "direction":
                 v = np.clip(v, *clip[name])
             return v

@@ -369,6 +369,20 @@ def _lane_sse(spec, theta, x, y, w):
 
 
 @functools.partial(jax.jit, static_argnames=("spec",))
+@functools.partial(jax.jit, static_argnames="spec")
+def model_at(spec, theta, x):
+    """The model of one muscle at ``theta`` on its inputs ``x`` (a tuple of 1-D arrays),
+    compiled once per spec and sample count: op by op, the diagnosis' per-muscle model
+    values and Jacobians took 1.5 s of a 4.5 s diagnosis of 100 muscles."""
+    return spec.predict(theta, x)
+
+
+@functools.partial(jax.jit, static_argnames="spec")
+def model_jacobian(spec, theta, x):
+    """∂F/∂θ of one muscle at ``theta`` (n × p), compiled as :func:`model_at` is."""
+    return jax.jacfwd(lambda th: spec.predict(th, x))(theta)
+
+
 def lane_jacobian(spec, theta, x, y, w):
     """The Jacobian of one lane's weighted residuals at ``theta`` (n × p)."""
     return jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
