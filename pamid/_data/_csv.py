@@ -420,7 +420,10 @@ def _read_csv_fast(
         return None
 
     keys = [f"c{j}" for j in range(len(names))]
-    n_lines = data.count(b"\n", header_end + 1, end) + 1
+    # With two columns or more, pyarrow refuses a line without the header's cell count (an
+    # empty line among them), so every row is one line; one column's empty line would be a
+    # row of one blank cell, and there the lines are counted (56 ms for 139 MB).
+    n_lines = data.count(b"\n", header_end + 1, end) + 1 if len(names) == 1 else None
     # Numbers pamid knows by name are parsed by pyarrow as float64 where no cell can hold a
     # blank or a tab (pyarrow would read " 1" as 1; such files take the text way below).
     # pyarrow's float64 takes [+-]digits[.digits][e[+-]digits] (the decimal mark
@@ -464,7 +467,7 @@ def _read_csv_fast(
         return None
     del body
     n = arrow.num_rows
-    if n != n_lines:
+    if n_lines is not None and n != n_lines:
         return None
 
     parsed = arrow.columns
