@@ -368,7 +368,6 @@ def _lane_sse(spec, theta, x, y, w):
     return jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
 
-@functools.partial(jax.jit, static_argnames=("spec",))
 @functools.partial(jax.jit, static_argnames="spec")
 def model_at(spec, theta, x):
     """The model of one muscle at ``theta`` on its inputs ``x`` (a tuple of 1-D arrays),
@@ -383,6 +382,7 @@ def model_jacobian(spec, theta, x):
     return jax.jacfwd(lambda th: spec.predict(th, x))(theta)
 
 
+@functools.partial(jax.jit, static_argnames=("spec",))
 def lane_jacobian(spec, theta, x, y, w):
     """The Jacobian of one lane's weighted residuals at ``theta`` (n × p)."""
     return jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
