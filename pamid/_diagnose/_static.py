@@ -686,13 +686,13 @@ LANE_BYTES_PER_SAMPLE = 1024
 #: Temporaries one compiled call may hold: lanes per call = this / (bytes per lane). Two CPU
 #: threads run calls side by side (:func:`pamid._fit._batch.map_lanes`).
 CALL_BUDGET_BYTES = 256 * 2**20
-#: Fewest lanes a call is padded to when the samples are few: the steps of a forward
-#: selection then reuse one compiled shape...
-MIN_LANES = 64
-#: ... as long as the padded call holds at most this many lane-samples: with more samples
-#: the padding costs more than compiling another shape (one muscle of 3,000 rows: 6 lanes
-#: with the compliance padded to 64 took most of a step's time).
-MIN_LANE_SAMPLES = 64 * 1024
+#: Lanes of every compiled call when the samples are few (:func:`_run_lanes`)...
+CALL_LANES = 64
+#: ... fewer (a power of two) where a call would hold more than this many lane-samples:
+#: with more samples the padding of a call to few lanes costs more than it saves (one
+#: muscle of 3,000 rows: 6 lanes with the compliance padded to 64 took most of a step's
+#: time).
+CALL_LANE_SAMPLES = 64 * 1024
 
 
 def lanes_per_call(n_samples: int) -> int:
@@ -724,18 +724,21 @@ def _by_kind(implicit, run):
 
 def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function) over
-    the lanes, in calls of :func:`lanes_per_call` lanes. Fewer lanes than that are padded
-    to a power of two (repeating the last lane), at least ``MIN_LANES`` while that stays
-    within ``MIN_LANE_SAMPLES``, so that the steps of a forward selection reuse a few
-    compiled shapes; more are cut into calls of that many (:func:`pamid._fit._batch.
-    map_lanes` pads only the last)."""
+    the lanes, in calls of one size for a given sample count: ``CALL_LANES`` lanes, fewer (a
+    power of two) where that many would hold more than ``CALL_LANE_SAMPLES`` lane-samples,
+    never more than :func:`lanes_per_call` allows. Fewer lanes than one call holds are
+    padded (repeating the last lane); more are cut into calls of that size
+    (:func:`pamid._fit._batch.map_lanes`). One size, whatever the number of lanes: every
+    step of a forward selection, every fold and every diagnosis of muscles of the same
+    sample count reuses one compiled shape (calls sized to the lanes, 16, 32 or 64 of them,
+    compiled up to three shapes per set width, each about a second)."""
     n = len(lanes[0])
     n_samples = shared[1].shape[1]
-    chunk = lanes_per_call(n_samples)
-    fewest = min(MIN_LANES, 1 << (max(1, MIN_LANE_SAMPLES // n_samples).bit_length() - 1))
-    size = min(chunk, max(fewest, 1 << (n - 1).bit_length())) if n <= chunk else n
-    idx = np.minimum(np.arange(size), n - 1)
-    lanes = tuple(a[idx] for a in lanes)
+    fewest = min(CALL_LANES, 1 << (max(1, CALL_LANE_SAMPLES // n_samples).bit_length() - 1))
+    size = min(lanes_per_call(n_samples), fewest)
+    if n < size:
+        idx = np.minimum(np.arange(size), n - 1)
+        lanes = tuple(a[idx] for a in lanes)
     run = functools.partial(fn, spec, with_compliance)
     key = builtin_key(spec)
     if key is not None and len(lane_devices()) == 1:
@@ -744,9 +747,9 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
         layout = tuple(d.name for d in transforms())
         key = (name, *key, with_compliance, MAX_ITER, *layout)
         out = map_lanes(lambda *a: _export_cache.call(key, run, shared, *a), *lanes,
-                        chunk=chunk)
+                        chunk=size)
     else:
-        out = map_lanes(lambda *a: run(shared, *a), *lanes, chunk=chunk)
+        out = map_lanes(lambda *a: run(shared, *a), *lanes, chunk=size)
     return jax.tree.map(lambda a: a[:n], out)
 
 
