@@ -17,17 +17,25 @@ The public API has three tiers (docs/architecture.md):
   decays), ``_sampling`` (MCMC), ``_diagnose`` (closing the loop), ``_control``
   (positioning control), ``_commands`` (the command line).
 
-float64 is switched on at import, because fitting needs it.
+float64 is switched on at import, because fitting needs it (``JAX_ENABLE_X64=1`` in this
+process' environment when JAX is not imported yet: ``import pamid`` does not import JAX).
 """
 
 import importlib
 import importlib.metadata
+import os
+import sys
 import warnings
 from typing import TYPE_CHECKING
 
-import jax
-
-jax.config.update("jax_enable_x64", True)
+# float64 on, without importing JAX here: the command line reads its data file while JAX
+# starts on another thread (pamid._fit._export_cache.prepare_in_background). JAX imported
+# before pamid gets the setting now; otherwise JAX reads it from this process' environment
+# when it is first imported (and child processes inherit it).
+if "jax" in sys.modules:
+    sys.modules["jax"].config.update("jax_enable_x64", True)
+else:
+    os.environ["JAX_ENABLE_X64"] = "1"
 
 #: THE list of public names: name -> (module, attribute; None for a namespace module).
 #: ``__all__``, ``dir(pamid)`` and the lazy loading below come from it, and

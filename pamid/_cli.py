@@ -95,27 +95,40 @@ def _format_table(result, published=None) -> str:
     return "\n".join(lines)
 
 
-def _cmd_fit(args) -> int:
-    import jax
+def _fit_prepare(args):
+    """What ``pamid fit`` does before its data are read: check its options (the model's
+    spec, a typo or a broken model file: one line; ``--bounds``, bad text: one line, exit 2)
+    and import the fit. Returns (spec, bounds)."""
+    from ._commands._model import check_model, parse_bounds
+    from ._fit import _api  # noqa: F401 - the fit's modules, imported while the file is read
 
+    spec = check_model(args.model)
+    return spec, parse_bounds(getattr(args, "bounds", None), spec)
+
+
+def _cmd_fit(args) -> int:
+    from ._commands._reading import reading_options
     from ._data._bench import load_bench
-    from ._fit._api import fit_least_squares
-    from ._io import final_place, write_text_atomic
 
     quiet = args.json
     t0 = time.perf_counter()
-    from ._commands._model import check_model
-    from ._commands._reading import reading_options
+    startup = getattr(args, "startup", None)  # main's: JAX starts and the checks run there
+    if startup is None:
+        from ._fit import _export_cache
 
-    spec = check_model(args.model)  # a typo or a broken model file: one line, before reading
-    from ._commands._model import parse_bounds
+        startup = _export_cache.prepare_in_background(then=lambda: _fit_prepare(args))
+    try:
+        bench = load_bench(args.data, **reading_options(args))
+    except BaseException:
+        startup.result()  # a bad model or bounds is told first, as if checked before reading
+        raise
+    spec, bounds = startup.result()
 
-    bounds = parse_bounds(getattr(args, "bounds", None), spec)  # bad text: one line, exit 2
+    import jax
 
-    from ._fit import _export_cache
+    from ._fit._api import fit_least_squares
+    from ._io import final_place, write_text_atomic
 
-    _export_cache.prepare_in_background()  # JAX's start-up, while the file is read
-    bench = load_bench(args.data, **reading_options(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
     if args.bootstrap and "bootstrap" not in intervals:
         intervals += ("bootstrap",)
@@ -311,7 +324,7 @@ def _parser() -> argparse.ArgumentParser:
 
     add_reading_arguments(fit)
     add_mcmc_arguments(fit)
-    fit.set_defaults(func=_cmd_fit)
+    fit.set_defaults(func=_cmd_fit, prepare=_fit_prepare)
 
     demo = sub.add_parser("demo", help="fit the bundled virtual-bench data set, beside Table 3-1")
     demo.add_argument("--out", default="demo-out", help="folder for plots and demo.json")
@@ -366,7 +379,14 @@ def main(argv: list[str] | None = None) -> int:
                                command=_command_name(args)) as staging:
             if staging is not None:
                 args.out = str(staging)
-            restore_cache = _enable_compilation_cache()
+            if getattr(args, "prepare", None) is not None:
+                # JAX's start-up, the disk caches and what the command does before its data
+                # are read, on a thread of their own while it reads them.
+                args.startup = _export_cache.prepare_in_background(
+                    disk_caches=True, then=lambda: args.prepare(args))
+                restore_cache = args.startup.restore
+            else:
+                restore_cache = _enable_compilation_cache()
             with warnings.catch_warnings():
                 warnings.simplefilter("always")
                 warnings.showwarning = _show_warning

@@ -244,10 +244,17 @@ def test_a_model_written_wrong_ends_in_one_line(tmp_path, quadratic_csv, pamid_c
     assert re.search(message, lines[0]), lines[0]
 
 
-def test_unknown_model_names_the_choices(quadratic_csv, pamid_cli):
+def test_unknown_model_names_the_choices(quadratic_csv, pamid_cli, tmp_path):
     out = pamid_cli(["fit", quadratic_csv / "bench.csv", "--model", "sarosy"])
     assert out.returncode == 2
     assert "unknown model 'sarosy'" in out.stderr and "sarosi" in out.stderr
+    # The options are checked while the file is read; their error still comes first, as
+    # when they were checked before reading.
+    for option, message in ((["--model", "sarosy"], "unknown model 'sarosy'"),
+                            (["--bounds", "a9=0:1"], "no constant 'a9'")):
+        out = pamid_cli(["fit", tmp_path / "absent.csv", *option])
+        assert out.returncode == 2 and message in out.stderr, out.stderr
+        assert len(out.stderr.strip().splitlines()) == 1
 
 
 def test_a_nonlinear_constant_without_a_default_is_named(tmp_path):

@@ -142,12 +142,17 @@ def test_unknown_name_is_an_attribute_error():
 
 
 def test_import_is_lazy_and_float64(fresh_python):
-    modules, x64 = fresh_python(
-        "import sys, json, pamid, jax; "
-        "print(json.dumps([sorted(m for m in sys.modules if m.startswith('pamid')), "
-        "jax.config.jax_enable_x64]))")
+    # `import pamid` imports neither its packages nor JAX (the command line reads its file
+    # while JAX starts on another thread); JAX imported after it, or before, has float64.
+    modules, jax_loaded, x64, dtype = fresh_python(
+        "import sys, json, pamid; j = 'jax' in sys.modules; import jax, jax.numpy as jnp; "
+        "print(json.dumps([sorted(m for m in sys.modules if m.startswith('pamid')), j, "
+        "jax.config.jax_enable_x64, str(jnp.asarray(1.0).dtype)]))")
     assert modules == ["pamid"]
-    assert x64 is True
+    assert jax_loaded is False
+    assert x64 is True and dtype == "float64"
+    assert fresh_python("import json, jax, pamid, jax.numpy as jnp; "
+                        "print(json.dumps(str(jnp.asarray(1.0).dtype)))") == "float64"
 
 
 PRIVATE_IMPORT = re.compile(r"^\s*(from\s+pamid\._|import\s+pamid\._|from\s+pamid\s+import\s+_)",

@@ -117,19 +117,50 @@ def _code_version() -> str:
     return h.hexdigest()
 
 
-def prepare_in_background() -> threading.Thread:
-    """Start a thread that does what the first compiled calls of a fit wait for,
-    whatever the data, so that it runs while the caller reads its data file (pyarrow's
-    parse and NumPy's copies release the GIL): JAX's CPU backend and its first array, the
-    LAPACK kernels a deserialized program's lowering loads (from SciPy:
+def prepare_in_background(disk_caches: bool = False, then=None) -> Startup:
+    """Start a thread that does what the first compiled calls of a fit wait for, whatever
+    the data, so that it runs while the caller reads its data file (pyarrow's parse and
+    NumPy's copies release the GIL): importing JAX (``import pamid`` does not), the disk
+    caches when ``disk_caches`` (:func:`use_disk_caches`), then ``then()`` (the command's
+    checks of its options, which import the model), then JAX's CPU backend and its first
+    array, the LAPACK kernels a deserialized program's lowering loads (from SciPy:
     ``import scipy.linalg``), ``scipy.special`` (the Student-t quantile of the intervals)
     and the hash of pamid's source (:func:`_code_version`, when the cache is on).
 
-    Best effort: whatever fails or is not done yet here is done where it is needed, as
-    without this thread (an import started here is waited for by Python's import lock).
-    ``pamid fit`` on 10,000 muscles: see benchmarks/README.md, end_to_end.py."""
+    :meth:`Startup.result` waits for the thread and returns what ``then`` returned, or
+    raises what it raised; :meth:`Startup.restore` waits for it and puts the caches'
+    settings back. The warm-up is best effort: whatever fails or is not done yet there is
+    done where it is needed (an import started on the thread is waited for by Python's
+    import lock). ``pamid fit`` on 10,000 muscles: see benchmarks/README.md, end_to_end.py."""
+    startup = Startup(disk_caches, then)
+    startup.start()
+    return startup
 
-    def run() -> None:
+
+class Startup(threading.Thread):
+    """The thread of :func:`prepare_in_background`.
+
+    Not a daemon: the interpreter waits for it before it shuts down (a daemon thread still
+    inside an extension's import when a command ends early, on a bad input say, crashed the
+    process in its finalization: exit -11)."""
+
+    def __init__(self, disk_caches: bool, then) -> None:
+        super().__init__(name="pamid-prepare")
+        self._disk_caches = disk_caches
+        self._then = then
+        self._restore = lambda: None
+        self._value = None
+        self._error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            if self._disk_caches:
+                self._restore = use_disk_caches()
+            if self._then is not None:
+                self._value = self._then()
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller by result()
+            self._error = exc
+            return
         try:
             import jax.numpy as jnp
 
@@ -142,12 +173,19 @@ def prepare_in_background() -> threading.Thread:
         except Exception:  # noqa: BLE001 - a warm-up only; the real call reports errors
             pass
 
-    # Not a daemon: the interpreter waits for it before it shuts down (a daemon thread
-    # still inside an extension's import when a command ends early, on a bad input say,
-    # crashed the process in its finalization: exit -11).
-    thread = threading.Thread(target=run, name="pamid-prepare")
-    thread.start()
-    return thread
+    def result(self):
+        """Wait for the thread; what ``then`` returned, or the exception it raised."""
+        self.join()
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise error
+        return self._value
+
+    def restore(self) -> None:
+        """Wait for the thread, then put back the settings its :func:`use_disk_caches`
+        changed."""
+        self.join()
+        self._restore()
 
 
 def _key(name: tuple, args) -> str:
