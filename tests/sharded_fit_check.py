@@ -143,9 +143,11 @@ def main(full=False):
         "mesh_axis_types": str(sharding.mesh.axis_types),
     }
 
-    # 4. Chunks and devices together: 8 lanes per device and call, so 37 lanes make calls
-    # of 16, 16 and 5 (padded to 16) lanes; against one device, one call of 37.
-    _batch.CHUNK_LANES = 8
+    # 4. Chunks and devices together: 8 lanes per device and call (the CPU devices' default
+    # chunk, set to 8 here), so 37 lanes make calls of 16, 16 and 5 (padded to 16) lanes;
+    # against one device, one call of 37.
+    cpu_chunk = _batch.CPU_CHUNK_LANES
+    _batch.CPU_CHUNK_LANES = 8
     calls = []
 
     def count(theta, x, y, w):
@@ -153,7 +155,7 @@ def main(full=False):
         return _statistics(SAROSI, theta, x, y, w)
 
     chunked = _batch.map_lanes(count, fit.theta, data.x, data.y, data.w)
-    _batch.CHUNK_LANES = 2048
+    _batch.CPU_CHUNK_LANES = cpu_chunk
     with use_devices(one):
         whole = _batch.map_lanes(count, fit.theta, data.x, data.y, data.w)
     out["chunked"] = {

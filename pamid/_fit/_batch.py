@@ -167,6 +167,14 @@ CHUNK_LANES = 2048
 CPU_CHUNK_LANES = 512
 
 
+def default_chunk(devices=None) -> int:
+    """Lanes per device and compiled call when :func:`map_lanes` is given no ``chunk``:
+    ``CPU_CHUNK_LANES`` on CPU devices, ``CHUNK_LANES`` on others (``devices``: default
+    :func:`pamid._fit._sharding.lane_devices`)."""
+    devices = lane_devices() if devices is None else devices
+    return CPU_CHUNK_LANES if devices[0].platform == "cpu" else CHUNK_LANES
+
+
 def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = None):
     """Apply ``fn`` to the arrays (pytrees with a leading lane axis) in chunks of lanes.
 
@@ -190,16 +198,15 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     leaves = jax.tree.leaves(arrays)
     n = leaves[0].shape[0]
     devices = lane_devices()
+    if chunk is None:
+        chunk = default_chunk(devices)
     if len(devices) > 1:
-        return _map_lanes_sharded(fn, arrays, n, CHUNK_LANES if chunk is None else chunk,
-                                  devices)
+        return _map_lanes_sharded(fn, arrays, n, chunk, devices)
     # One device picked with use_devices or jax.default_device: run there, named in every
     # worker thread (jax.default_device is a per-thread setting).
     pinned = chosen_devices() is not None or jax.config.jax_default_device is not None
     device = devices[0] if pinned else None
     workers = _cpu_workers() if devices[0].platform == "cpu" else 1
-    if chunk is None:
-        chunk = CPU_CHUNK_LANES if devices[0].platform == "cpu" else CHUNK_LANES
     if cache_key is not None:
         fn = functools.partial(_export_cache.call, cache_key, fn)
     return _map_lanes_one_device(fn, arrays, n, chunk, device, workers)

@@ -20,8 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._batch import FitData, map_lanes
-from ._least_squares import _key, _sarosi_chunk, residuals, solve
+from ._batch import FitData, default_chunk, map_lanes
+from ._least_squares import _key, residuals, solve
 from ._spec import ModelSpec
 
 
@@ -256,10 +256,12 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
 
 
 def _profile_chunk(spec: ModelSpec, n_params: int) -> int | None:
-    """Muscles per call: as many interval ends (2·p per muscle) as the Sárosi kernels take
-    lanes (``_sarosi_chunk``), so that a chunk's arrays stay in the caches."""
-    lanes = _sarosi_chunk()
-    return None if lanes is None else max(1, lanes // (2 * n_params))
+    """Muscles per call on the CPU: as many interval ends (2·p per muscle) as
+    :func:`map_lanes` takes lanes there, so that a chunk's arrays stay in the caches;
+    elsewhere ``map_lanes``'s default."""
+    if jax.default_backend() != "cpu":
+        return None
+    return max(1, default_chunk() // (2 * n_params))
 
 
 @jax.jit

@@ -26,7 +26,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import _batch
 from ._batch import FitData, map_lanes
 from ._rank import RANK_RTOL
 from ._spec import ModelSpec, builtin_key
@@ -174,7 +173,6 @@ def solve(
                 x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
             ),
             data.x, data.y, data.w, *start,
-            chunk=_sarosi_chunk(),
             cache_key=(f"{fast.key}_gauss_newton", max_steps, rtol, atol),
         )
         theta = np.asarray(theta)
@@ -238,12 +236,6 @@ _TRACING_ERRORS = (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayCon
                    jax.errors.TracerBoolConversionError, jax.errors.TracerIntegerConversionError)
 
 
-def _sarosi_chunk() -> int | None:
-    """Lanes per call of the written-out Sárosi kernels: ``_batch.CPU_CHUNK_LANES`` on the
-    CPU (the arrays of a chunk stay in the caches), ``map_lanes``'s default elsewhere."""
-    return _batch.CPU_CHUNK_LANES if jax.default_backend() == "cpu" else None
-
-
 def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
     """The ``cache_key`` of a batched call (None, no caching, for specs not pamid's own)."""
     name = builtin_key(spec)
@@ -298,14 +290,12 @@ def statistics(spec: ModelSpec, theta, data: FitData, *, lag1: bool = False):
         out = map_lanes(
             lambda t, x, y, w, c: _statistics_lag1(spec, t, x, y, w, c), _host(theta),
             data.x, data.y, data.w, data.curve,
-            chunk=_sarosi_chunk() if fast is not None else None,
             cache_key=_key("statistics_lag1", spec),
         )
         return tuple(np.asarray(a) for a in out)
     if fast is not None:
         out = map_lanes(
             fast.statistics, _host(theta), data.x, data.y, data.w,
-            chunk=_sarosi_chunk(),
             cache_key=(f"{fast.key}_statistics",),
         )
         return tuple(np.asarray(a) for a in out)
@@ -380,12 +370,6 @@ def model_at(spec, theta, x):
 def model_jacobian(spec, theta, x):
     """∂F/∂θ of one muscle at ``theta`` (n × p), compiled as :func:`model_at` is."""
     return jax.jacfwd(lambda th: spec.predict(th, x))(theta)
-
-
-@functools.partial(jax.jit, static_argnames=("spec",))
-def lane_jacobian(spec, theta, x, y, w):
-    """The Jacobian of one lane's weighted residuals at ``theta`` (n × p)."""
-    return jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
 
 
 def _repeat_lanes(data: FitData, k: int) -> FitData:
@@ -534,10 +518,10 @@ def _rank_deficient(spec, theta, data, lanes, free=None) -> np.ndarray:
 def _jacobian_rows(spec, theta, data: FitData, i: int) -> np.ndarray:
     """Lane ``i``'s Jacobian at ``theta`` on its rows of positive weight."""
     w = np.asarray(data.w[i])
-    jac = np.asarray(lane_jacobian(spec, jnp.asarray(theta, dtype=jnp.float64),
-                                   tuple(jnp.asarray(a[i]) for a in data.x),
-                                   jnp.asarray(data.y[i]), jnp.asarray(w)))
-    return jac[w > 0]
+    jac = np.asarray(model_jacobian(spec, jnp.asarray(theta, dtype=jnp.float64),
+                                    tuple(jnp.asarray(a[i]) for a in data.x)))
+    keep = w > 0
+    return np.sqrt(w[keep])[:, None] * jac[keep]  # that of the residuals w^½·(model − data)
 
 
 def _linear_in_all(spec: ModelSpec) -> bool:
