@@ -14,6 +14,7 @@ import functools
 import os
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
@@ -117,11 +118,13 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         pad = np.where(empty, 0.0, a[first]) if n else np.zeros(m)
         xs.append(scatter(a, pad[:, None]))
     curve_ids = 0 if curve is None else _dense_within(codes, np.asarray(curve), order)
+    # device_put, not jnp.asarray: JAX stages a NumPy array through a compiled program of
+    # its shape (lax.stage), compiled (or read from the disk cache) once per shape.
     return FitData(
-        x=tuple(jnp.asarray(a) for a in xs),
-        y=jnp.asarray(scatter(np.asarray(y, dtype=np.float64), 0.0)),
-        w=jnp.asarray(scatter(1.0, 0.0)),
-        curve=jnp.asarray(scatter(curve_ids, -1, dtype=np.int64)),
+        x=tuple(jax.device_put(a) for a in xs),
+        y=jax.device_put(scatter(np.asarray(y, dtype=np.float64), 0.0)),
+        w=jax.device_put(scatter(1.0, 0.0)),
+        curve=jax.device_put(scatter(curve_ids, -1, dtype=np.int64)),
     )
 
 

@@ -240,8 +240,7 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     ends, ok = map_lanes(
         lambda *a: _profile_ends(spec, *a, max_steps=max_steps, tol=tol,
                                  max_jump=PROFILE_MAX_JUMP, check=check),
-        jnp.asarray(theta), jnp.asarray(cov), jnp.asarray(tcrit), jnp.asarray(s2),
-        jnp.asarray(sse), data.x, data.y, data.w,
+        theta, cov, np.asarray(tcrit), np.asarray(s2), np.asarray(sse), data.x, data.y, data.w,
         chunk=_profile_chunk(spec, theta.shape[-1]),
         cache_key=_key("profile", spec, max_steps, tol, PROFILE_MAX_JUMP, check),
     )
