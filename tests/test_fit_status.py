@@ -17,7 +17,7 @@ from sarosi_np import force_np
 
 from pamid._fit._api import STATUSES, _statuses, fit_least_squares
 from pamid._fit._batch import pack
-from pamid._fit._least_squares import fit_lanes, statistics
+from pamid._fit._least_squares import _take_lanes, fit_lanes, solve, statistics
 from pamid._fit._rank import RANK_RTOL, null_direction, undetermined
 from pamid._fit._spec import SAROSI
 from pamid.report import fit_json
@@ -239,3 +239,34 @@ def test_profile_intervals_end_at_the_bounds(small_bench):
     # no muscle's interval reaches past the bound, whether its fit ended on it or not
     ends = bounded.ci95_profile[:, 0, :]
     assert np.all(ends[np.isfinite(ends)] <= cap)
+
+
+@pytest.mark.parametrize("solver", ["gauss-newton", "levenberg-marquardt"])
+def test_the_solve_s_statistics_are_those_at_its_constants(designs, solver):
+    """The statistics that the solve's own program returns (the model's registered kernel,
+    and the generic solver) equal those of the statistics' program at the same constants."""
+    _, data = designs
+    theta, ok, steps, stats = solve(SAROSI, data, solver=solver, with_statistics=True)
+    alone = solve(SAROSI, data, solver=solver)
+    np.testing.assert_allclose(theta, alone[0], rtol=1e-12)
+    np.testing.assert_array_equal(ok, alone[1])
+    ref = statistics(SAROSI, theta, data, lag1=True)
+    assert len(stats) == len(ref) == 8
+    for got, want in zip(stats, ref, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=0.0, equal_nan=True)
+    with pytest.raises(ValueError, match="without bounds"):
+        solve(SAROSI, data, with_statistics=True, bounds=(np.full(6, -np.inf), np.full(6, np.inf)))
+
+
+def test_the_fit_keeps_the_solve_s_statistics_only_where_no_lane_changed(designs):
+    names, data = designs
+    lanes = fit_lanes(SAROSI, data, with_statistics=True)
+    # "three levels" left the bounds and was refitted within them: not the solve's constants.
+    assert lanes.left_bounds[names.index("three levels")] and lanes.statistics is None
+    good = _take_lanes(data, np.array([names.index("well designed")]))
+    lanes = fit_lanes(SAROSI, good, with_statistics=True)
+    assert lanes.statistics is not None
+    for got, want in zip(lanes.statistics, statistics(SAROSI, lanes.theta, good, lag1=True),
+                         strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=0.0)
+    assert fit_lanes(SAROSI, good).statistics is None  # not asked for

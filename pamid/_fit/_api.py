@@ -386,10 +386,15 @@ def fit_least_squares(
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
         trials = None
 
-    lanes = fit_lanes(spec, data, solver=solver, bounds=bounds, starts=starts)
+    lanes = fit_lanes(spec, data, solver=solver, bounds=bounds, starts=starts,
+                      with_statistics=True)
     theta, steps = lanes.theta, lanes.steps
-    # The residual's lag-1 sums (for_fit, below) come from the same compiled call.
-    sse, jtj_inv, corr, n, full_rank, *lag1 = statistics(spec, theta, data, lag1=True)
+    # The statistics come from the solve's compiled call where no lane changed after it, the
+    # residual's lag-1 sums (for_fit, below) from the statistics' call.
+    stats = lanes.statistics
+    if stats is None:
+        stats = statistics(spec, theta, data, lag1=True)
+    sse, jtj_inv, corr, n, full_rank, *lag1 = stats
     se, lo, hi, s2, dof = _intervals.wald(theta, jtj_inv, sse, n, level)
     # A fit whose constants are not all determined by the data (rank-deficient Jacobian, a
     # constant that ran off, no degrees of freedom left) is not reported as converged,

@@ -153,11 +153,18 @@ def solve(
     max_steps: int = 100,
     rtol: float = 1e-10,
     atol: float = 1e-10,
+    with_statistics: bool = False,
 ):
     """Fit ``spec`` to every muscle of ``data`` in one compiled call.
 
     Returns ``(theta, converged, n_steps)`` as NumPy arrays with a leading muscle axis.
+    ``with_statistics`` (not with ``bounds``): the same call also returns, as a fourth item,
+    :func:`statistics` ``(..., lag1=True)`` at those constants: one program and one pass of
+    the chunk's samples fewer than a second call (benchmarks/README.md, "The solve and its
+    statistics in one program").
     """
+    if with_statistics and bounds is not None:
+        raise ValueError("with_statistics is for fits without bounds")
     if solver not in SOLVERS:
         raise ValueError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
     fast = spec.fast_path
@@ -167,17 +174,24 @@ def solve(
                          "solver")
     if solver == "gauss-newton" and fast is not None and bounds is None:
         # The model's registered written-out Gauss–Newton, with its own start.
-        start = () if theta0 is None else (jnp.asarray(theta0, dtype=jnp.float64),)
-        theta, ok, steps = map_lanes(
-            lambda x, y, w, *t0: fast.gauss_newton(
-                x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
-            ),
-            data.x, data.y, data.w, *start,
-            cache_key=(f"{fast.key}_gauss_newton", max_steps, rtol, atol),
-        )
-        theta = np.asarray(theta)
-        ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
-        return theta, ok, np.asarray(steps)
+        start = () if theta0 is None else (_host(theta0),)
+        if with_statistics:
+            out = map_lanes(
+                lambda x, y, w, c, *t0: _fit_statistics(
+                    spec, None, x, y, w, c, *t0, max_steps=max_steps, rtol=rtol, atol=atol
+                ),
+                data.x, data.y, data.w, data.curve, *start,
+                cache_key=(f"{fast.key}_gauss_newton_statistics", max_steps, rtol, atol),
+            )
+        else:
+            out = map_lanes(
+                lambda x, y, w, *t0: fast.gauss_newton(
+                    x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
+                ),
+                data.x, data.y, data.w, *start,
+                cache_key=(f"{fast.key}_gauss_newton", max_steps, rtol, atol),
+            )
+        return _solved(*out)
     if theta0 is None:
         theta0 = _start_values(spec, data)
     theta0 = _host(theta0)
@@ -191,15 +205,44 @@ def solve(
             ),
             theta0, data.x, data.y, data.w,
         )
+    elif with_statistics:
+        return _solved(*map_lanes(
+            lambda t0, x, y, w, c: _fit_statistics(
+                spec, solver, x, y, w, c, t0, max_steps=max_steps, rtol=rtol, atol=atol
+            ),
+            theta0, data.x, data.y, data.w, data.curve,
+            cache_key=_key("solve_statistics", spec, solver, max_steps, rtol, atol),
+        ))
     else:
         theta, ok, steps = map_lanes(
             lambda t0, x, y, w: _solve_batch(spec, solver, t0, x, y, w, max_steps, rtol, atol),
             theta0, data.x, data.y, data.w,
             cache_key=_key("solve", spec, solver, max_steps, rtol, atol),
         )
+    return _solved(theta, ok, steps)
+
+
+def _solved(theta, ok, steps, stats=None):
+    """A solve's outputs as NumPy arrays; a lane whose constants are not all finite has not
+    converged. With ``stats``, those as a tuple after them."""
     theta = np.asarray(theta)
     ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
-    return theta, ok, np.asarray(steps)
+    out = (theta, ok, np.asarray(steps))
+    return out if stats is None else (*out, tuple(np.asarray(a) for a in stats))
+
+
+@functools.partial(jax.jit, static_argnames=("spec", "solver", "max_steps", "rtol", "atol"))
+def _fit_statistics(spec, solver, x, y, w, curve, *theta0, max_steps, rtol, atol):
+    """The solve of :func:`solve` and :func:`statistics` (with the lag-1 sums within
+    ``curve``) at its result, in one program: ``solver`` None is the model's registered
+    Gauss–Newton (from its own start without ``theta0``)."""
+    if solver is None:
+        theta, ok, steps = spec.fast_path.gauss_newton(
+            x, y, w, *theta0, max_steps=max_steps, rtol=rtol, atol=atol)
+    else:
+        theta, ok, steps = _solve_batch(spec, solver, theta0[0], x, y, w, max_steps, rtol,
+                                        atol)
+    return theta, ok, steps, _statistics_lag1(spec, theta, x, y, w, curve)
 
 
 def _host(theta) -> np.ndarray:
@@ -338,6 +381,9 @@ class LaneFit:
             constant ran off, the data do not pin it.
         at_lower, at_upper: (M, p) constants on their lower / upper bound.
         starts: starts per muscle of the main solve.
+        statistics: :func:`statistics` ``(..., lag1=True)`` at ``theta`` where ``fit_lanes``
+            was asked for them and its main solve gave them (no lane changed after it);
+            else None.
     """
 
     theta: np.ndarray
@@ -349,6 +395,7 @@ class LaneFit:
     at_lower: np.ndarray
     at_upper: np.ndarray
     starts: int
+    statistics: tuple | None = None
 
 
 @functools.partial(jax.jit, static_argnames=("spec",))
@@ -545,7 +592,8 @@ def _linear_fit(spec: ModelSpec, data: FitData):
 
 def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", bounds=None,
               starts: int | None = None, theta0=None, max_steps: int = 100,
-              rtol: float = 1e-10, atol: float = 1e-10) -> LaneFit:
+              rtol: float = 1e-10, atol: float = 1e-10,
+              with_statistics: bool = False) -> LaneFit:
     """Fit every muscle, from several starts where one is not enough, within bounds.
 
     1. Without bounds (fast): the model's registered kernels (Sárosi) from their own start;
@@ -558,6 +606,10 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
        one loop with projected bounds (:func:`_solve_in_bounds`); constants on a bound are
        marked.
        A lane whose fit without bounds found no determined optimum is marked as ran away.
+
+    ``with_statistics``: the main solve of step 1 also returns the statistics at its
+    constants (:func:`solve`); they are kept in ``LaneFit.statistics`` when no lane changed
+    after it.
     """
     k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
     k_retry = max(k, RETRY_STARTS)
@@ -572,10 +624,12 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
                                            and spec.fast_path is not None):
         out = _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower, upper)
     several = out is not None  # already from several starts (or solved): no second try below
+    stats = None
     if out is None:
         out = solve(spec, data, solver=solver, theta0=theta0, max_steps=max_steps,
-                    rtol=rtol, atol=atol)
-    theta, ok, steps = (np.array(a) for a in out)
+                    rtol=rtol, atol=atol, with_statistics=with_statistics)
+        stats = out[3] if with_statistics else None
+    theta, ok, steps = (np.array(a) for a in out[:3])
     m, p = theta.shape
 
     def outside(t):
@@ -608,6 +662,8 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
             pos = np.asarray(better, dtype=bool)
             theta[sel], ok[sel], steps[sel] = t2[pos], ok2[pos], steps[sel] + st2[pos]
             out_now = outside(theta)
+            if sel.size:
+                stats = None  # not at these constants any more
     free_theta = theta.copy()
     free_ok = ok.copy()
     finite = np.all(np.isfinite(theta), axis=-1)
@@ -633,6 +689,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
         tb, okb, stb = solve(spec, sub, theta0=start, bounds=(lower, upper),
                              max_steps=max_steps)
         theta[lanes], ok[lanes], steps[lanes] = tb, okb, steps[lanes] + stb
+        stats = None
         width = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
         tol = 1e-9 * np.maximum(width, np.maximum(np.abs(np.where(np.isfinite(lower), lower, 0)),
                                                   np.abs(np.where(np.isfinite(upper), upper, 0))))
@@ -646,4 +703,5 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
         ran[np.flatnonzero(sound)] = deficient
         ran_away[lanes] = ran
     return LaneFit(theta=theta, ok=ok, steps=steps, free_theta=free_theta, left_bounds=left,
-                   ran_away=ran_away, at_lower=at_lower, at_upper=at_upper, starts=k)
+                   ran_away=ran_away, at_lower=at_lower, at_upper=at_upper, starts=k,
+                   statistics=stats)
