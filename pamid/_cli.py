@@ -20,6 +20,7 @@ import argparse
 import json
 import os
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -106,6 +107,19 @@ def _fit_prepare(args):
     return spec, parse_bounds(getattr(args, "bounds", None), spec)
 
 
+def _warm_fit(startup, rows_per_muscle, intervals) -> None:
+    """``prepare_fit`` for the model the start-up thread checked; best effort: whatever
+    fails here is done, or reported, where the fit runs."""
+    try:
+        prepared = startup.value()
+        if prepared is not None:
+            from ._fit._api import prepare_fit
+
+            prepare_fit(prepared[0], rows_per_muscle, intervals=intervals)
+    except Exception:  # noqa: BLE001 - a warm-up only
+        pass
+
+
 def _cmd_fit(args) -> int:
     from ._commands._reading import reading_options
     from ._data._bench import load_bench
@@ -117,11 +131,28 @@ def _cmd_fit(args) -> int:
         from ._fit import _export_cache
 
         startup = _export_cache.prepare_in_background(then=lambda: _fit_prepare(args))
+    intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
+    if args.bootstrap and "bootstrap" not in intervals:
+        intervals += ("bootstrap",)
+    warming: list[threading.Thread] = []
+
+    def on_rows(rows_per_muscle):
+        # The fit's compiled programs for data of this shape, loaded on a thread of their
+        # own while the rest of the file is checked (the default solver: the others may warn).
+        if not warming and args.method == "ls" and args.solver == "gauss-newton":
+            warming.append(threading.Thread(
+                target=_warm_fit, args=(startup, rows_per_muscle, intervals),
+                name="pamid-warm"))
+            warming[0].start()
+
     try:
-        bench = load_bench(args.data, **reading_options(args))
+        bench = load_bench(args.data, on_rows=on_rows, **reading_options(args))
     except BaseException:
         startup.result()  # a bad model or bounds is told first, as if checked before reading
         raise
+    finally:
+        for thread in warming:
+            thread.join()
     spec, bounds = startup.result()
 
     import jax
@@ -129,9 +160,6 @@ def _cmd_fit(args) -> int:
     from ._fit._api import fit_least_squares
     from ._io import final_place, write_text_atomic
 
-    intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
-    if args.bootstrap and "bootstrap" not in intervals:
-        intervals += ("bootstrap",)
     stage(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
            quiet)
     if args.method == "mcmc":

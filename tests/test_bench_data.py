@@ -268,6 +268,20 @@ def test_muscle_with_only_censored_rows_is_left_out(tmp_path):
     assert data.muscles == ("A",)
 
 
+def test_on_rows_gets_the_rows_each_muscle_keeps_before_the_frame_is_made(tmp_path):
+    text = csv_rows("muscle,pressure_kPa,contraction_pct,force_N",
+                    ["A,100,0,5", "B,100,0,0", "A,200,0,9", "C,100,0,4", "A,300,0,0",
+                     "C,200,0,7"])
+    seen = []
+    with pytest.warns(CensoredRowsWarning):
+        data = load_bench(write(tmp_path, text), on_rows=lambda rows: seen.append(rows.tolist()))
+    assert data.muscles == ("A", "C") and seen == [[2, 2]]  # B's only row was censored
+    seen.clear()
+    load_bench(write(tmp_path, text), keep_censored=True,
+               on_rows=lambda rows: seen.append(rows.tolist()))
+    assert seen == [[3, 1, 2]]
+
+
 @pytest.mark.skipif(not MARTENS.exists(), reason="shared Martens data file not available")
 def test_martens_file():
     with pytest.warns(CensoredRowsWarning, match="dropped 45 censored rows"):

@@ -95,6 +95,29 @@ def test_fits_through_the_cache_equal_traced_fits(small_bench, cache_dir, monkey
         np.testing.assert_array_equal(fit.converged, traced.converged)
 
 
+@pytest.mark.parametrize("chunk", [None, 2], ids=["one call", "calls of 2 muscles"])
+def test_the_fit_s_programs_are_ready_before_its_data_are_packed(small_bench, cache_dir,
+                                                                  monkeypatch, chunk):
+    """``prepare_fit`` with the rows that ``load_bench`` reports makes the very programs
+    the fit then runs (the same entries; none added by the fit), whether the fit's muscles
+    go in one call or (a file of more muscles than a call takes) in several."""
+    from pamid._fit import _batch
+    from pamid._fit._api import prepare_fit
+    from pamid._fit._spec import SAROSI
+
+    if chunk is not None:
+        monkeypatch.setattr(_batch, "CPU_CHUNK_LANES", chunk)
+    seen = []
+    bench = pamid.load_bench(small_bench.bench.path, on_rows=seen.append)
+    assert [r.tolist() for r in seen] == [
+        small_bench.frame.groupby("muscle", sort=False).size().tolist()]
+    prepare_fit(SAROSI, seen[0], intervals=("wald", "profile"))
+    made = entries(cache_dir)
+    assert len(made) == 2  # the solve with its statistics, the profile
+    fit = pamid.fit_least_squares(bench, intervals=("wald", "profile"))
+    assert entries(cache_dir) == made and fit.converged.all()
+
+
 def test_python_scalars_among_the_inputs(cache_dir):
     scale = lambda a, c: a * c  # noqa: E731
     a = np.arange(3.0)

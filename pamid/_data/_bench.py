@@ -187,6 +187,7 @@ def load_bench(
     decimal: str | None = None,
     sheet: str | None = None,
     columns: dict[str, str] | None = None,
+    on_rows=None,
 ) -> BenchData:
     """Load a bench file (CSV, Parquet or a spreadsheet) of pneumatic-muscle measurements.
 
@@ -218,6 +219,13 @@ def load_bench(
     columns:
         Maps headers of the file to pamid's names, e.g. ``{"Druck": "pressure_bar",
         "Kraft": "force_N"}``, for namings pamid does not recognise by itself.
+    on_rows:
+        Called with the number of rows each muscle keeps (an int array, muscles in the
+        order of the file) as soon as the muscles are known, before the remaining checks
+        and the frame are made: a caller can start work that depends only on the data's
+        shape meanwhile (``pamid fit`` loads its compiled programs). It may be called again
+        for the same file (where the fast reader's table is read once more, cell by cell);
+        a file refused before that point never calls it.
 
     Returns
     -------
@@ -264,13 +272,13 @@ def load_bench(
         table = reader.fast(p, shown, data=stream, columns=columns, **options)
         if table is not None:
             try:
-                return _interpret(table, l0_value, keep_censored)
+                return _interpret(table, l0_value, keep_censored, on_rows)
             except BenchDataError:
                 pass  # the reference reader finds the problem again and words it exactly
             del table
     table = reader.read(p, shown, data=stream, **options)
     table.rename(columns)
-    return _interpret(table, l0_value, keep_censored)
+    return _interpret(table, l0_value, keep_censored, on_rows)
 
 
 def _check_reading_options(shown: str, sep, decimal, columns) -> str | None:
@@ -337,7 +345,8 @@ class _Labels:
     trial_labels: object = None  # the frame's trial column, where the file has trials
 
 
-def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> BenchData:
+def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
+               on_rows=None) -> BenchData:
     """Check the table's columns and build the BenchData (the body of :func:`load_bench`).
 
     The steps, in the order their errors come: units in the column names, required columns,
@@ -347,6 +356,10 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool) -> Be
     pressure_col = _check_required(table, l0_value)
     numbers = _numbers(table)
     labels = _muscles_and_trials(table)
+    if on_rows is not None:
+        kept = labels.codes if keep_censored else labels.codes[numbers.values["force_N"] != 0.0]
+        counts = np.bincount(kept, minlength=len(labels.uniques))
+        on_rows(counts[counts > 0])
     pressure_kpa = _pressure_kpa(table, pressure_col, numbers.values)
     l0_rows = _nominal_length(table, numbers.values, labels, l0_value)
     contraction, contraction_mm = _contraction(table, numbers.values, l0_rows)

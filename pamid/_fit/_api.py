@@ -11,7 +11,7 @@ import pandas as pd
 from .._data._bench import BenchData
 from . import _correlated, _intervals
 from ._batch import FitData, pack_rows
-from ._least_squares import bounds_arrays, fit_lanes, statistics
+from ._least_squares import DEFAULT_STARTS, bounds_arrays, first_solve, fit_lanes, statistics
 from ._spec import ModelSpec, get_model
 
 INTERVAL_KINDS = ("wald", "profile", "bootstrap", "cluster", "hac")
@@ -324,6 +324,41 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
     y = frame["force_N"].to_numpy(dtype=np.float64)
     curve = bench.curves.curve if curves else None  # None: every row in curve 0
     return pack_rows(codes, x, y, curve, n_muscles=len(bench.muscles))
+
+
+def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton",
+                intervals: tuple[str, ...] = ("wald",), starts: int | None = None) -> None:
+    """Compile, or read from the disk caches, the programs that :func:`fit_least_squares`
+    runs first on muscles of ``rows_per_muscle`` rows (one count per muscle): the first
+    solve with its statistics and the profile intervals. Each runs once on as many lanes
+    as one of the fit's calls takes, of weight zero (nothing to fit: it returns at once),
+    in the arrays' types the fit will pass. ``pamid fit`` runs this on a thread of its own
+    while it reads the rest of the file (``load_bench``'s ``on_rows``); programs of other
+    shapes (a second try, a refit within bounds) are still made where they run. On several
+    devices it does nothing (those calls do not go through the programs kept on disk)."""
+    from ._batch import default_chunk
+    from ._sharding import lane_devices
+
+    counts = np.asarray(rows_per_muscle)
+    if counts.size == 0 or len(lane_devices()) > 1:
+        return
+    m, n = min(counts.size, default_chunk()), int(counts.max())
+    # One call's lanes come as the packed arrays when they are all the muscles, else as
+    # NumPy slices (map_lanes): the compiled call is keyed by the type too.
+    put = jax.device_put if m == counts.size else (lambda a: a)
+    zeros = lambda dtype=np.float64: put(np.zeros((m, n), dtype=dtype))  # noqa: E731
+    n_x = len(spec.to_x(*(np.zeros(1) for _ in spec.columns)))
+    data = FitData(x=tuple(zeros() for _ in range(n_x)), y=zeros(), w=zeros(),
+                   curve=zeros(np.int64))
+    k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
+    with np.errstate(all="ignore"):  # no muscle, nothing to warn about
+        _, stats, _, _ = first_solve(spec, data, solver=solver, starts=k,
+                                     with_statistics=True)
+        if stats is None:
+            statistics(spec, np.zeros((m, spec.n_params)), data, lag1=True)
+        if "profile" in intervals:
+            nan = np.full((m, spec.n_params), np.nan)  # no end to look for: it stops at once
+            _intervals.profile(spec, data, nan, nan, np.ones(m), np.zeros(m), np.ones(m))
 
 
 def fit_least_squares(

@@ -181,6 +181,12 @@ class Startup(threading.Thread):
             raise error
         return self._value
 
+    def value(self):
+        """Wait for the thread; what ``then`` returned, or None where it raised (which
+        :meth:`result` still raises)."""
+        self.join()
+        return None if self._error is not None else self._value
+
     def restore(self) -> None:
         """Wait for the thread, then put back the settings its :func:`use_disk_caches`
         changed."""

@@ -590,6 +590,32 @@ def _linear_fit(spec: ModelSpec, data: FitData):
     return theta, ok, np.ones(len(theta), dtype=np.int64)
 
 
+def first_solve(spec: ModelSpec, data: FitData, *, solver: str, starts: int, theta0=None,
+                max_steps: int = 100, rtol: float = 1e-10, atol: float = 1e-10,
+                bounds=(None, None), with_statistics: bool = False):
+    """Step 1 of :func:`fit_lanes`, the solve without bounds: a model linear in every
+    constant solved directly; several starts as extra lanes where ``starts`` > 1 (not for
+    a registered kernel, which has its own start); else one :func:`solve`, which also gives
+    the statistics where ``with_statistics`` asks for them.
+
+    Returns ``((theta, ok, steps), statistics or None, linear, several)``: ``several`` when
+    the lanes already come from several starts (or were solved), so that no second try
+    from other starts would help."""
+    linear = (theta0 is None and solver in ("gauss-newton", "levenberg-marquardt")
+              and _linear_in_all(spec))
+    out = None
+    if linear:
+        out = _linear_fit(spec, data)
+    elif theta0 is None and starts > 1 and not (solver == "gauss-newton"
+                                                and spec.fast_path is not None):
+        out = _multi_start(spec, data, solver, starts, max_steps, rtol, atol, *bounds)
+    if out is not None:
+        return out, None, linear, True
+    out = solve(spec, data, solver=solver, theta0=theta0, max_steps=max_steps, rtol=rtol,
+                atol=atol, with_statistics=with_statistics)
+    return out[:3], (out[3] if with_statistics else None), linear, False
+
+
 def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", bounds=None,
               starts: int | None = None, theta0=None, max_steps: int = 100,
               rtol: float = 1e-10, atol: float = 1e-10,
@@ -614,22 +640,10 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
     k_retry = max(k, RETRY_STARTS)
     lower, upper = bounds_arrays(spec, bounds)
-    out = None
-    # A model linear in every constant has one optimum, solved without iterating.
-    linear = (theta0 is None and solver in ("gauss-newton", "levenberg-marquardt")
-              and _linear_in_all(spec))
-    if linear:
-        out = _linear_fit(spec, data)
-    elif theta0 is None and k > 1 and not (solver == "gauss-newton"
-                                           and spec.fast_path is not None):
-        out = _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower, upper)
-    several = out is not None  # already from several starts (or solved): no second try below
-    stats = None
-    if out is None:
-        out = solve(spec, data, solver=solver, theta0=theta0, max_steps=max_steps,
-                    rtol=rtol, atol=atol, with_statistics=with_statistics)
-        stats = out[3] if with_statistics else None
-    theta, ok, steps = (np.array(a) for a in out[:3])
+    out, stats, linear, several = first_solve(
+        spec, data, solver=solver, starts=k, theta0=theta0, max_steps=max_steps, rtol=rtol,
+        atol=atol, bounds=(lower, upper), with_statistics=with_statistics)
+    theta, ok, steps = (np.array(a) for a in out)
     m, p = theta.shape
 
     def outside(t):
