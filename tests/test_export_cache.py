@@ -96,11 +96,12 @@ def test_fits_through_the_cache_equal_traced_fits(small_bench, cache_dir, monkey
 
 
 @pytest.mark.parametrize("chunk", [None, 2], ids=["one call", "calls of 2 muscles"])
-def test_the_fit_s_programs_are_ready_before_its_data_are_packed(small_bench, cache_dir,
-                                                                  monkeypatch, chunk):
-    """``prepare_fit`` with the rows that ``load_bench`` reports makes the very programs
-    the fit then runs (the same entries; none added by the fit), whether the fit's muscles
-    go in one call or (a file of more muscles than a call takes) in several."""
+def test_the_fit_s_programs_are_loaded_before_its_data_are_packed(small_bench, cache_dir,
+                                                                   monkeypatch, chunk):
+    """``prepare_fit`` with the rows that ``load_bench`` reports loads the very programs
+    the fit then runs (the fit loads none after it), whether the fit's muscles go in one
+    call or (a file of more muscles than a call takes) in several; and it compiles nothing:
+    with nothing on disk it stops and writes no entry."""
     from pamid._fit import _batch
     from pamid._fit._api import prepare_fit
     from pamid._fit._spec import SAROSI
@@ -111,11 +112,36 @@ def test_the_fit_s_programs_are_ready_before_its_data_are_packed(small_bench, ca
     bench = pamid.load_bench(small_bench.bench.path, on_rows=seen.append)
     assert [r.tolist() for r in seen] == [
         small_bench.frame.groupby("muscle", sort=False).size().tolist()]
-    prepare_fit(SAROSI, seen[0], intervals=("wald", "profile"))
-    made = entries(cache_dir)
-    assert len(made) == 2  # the solve with its statistics, the profile
-    fit = pamid.fit_least_squares(bench, intervals=("wald", "profile"))
-    assert entries(cache_dir) == made and fit.converged.all()
+    intervals = ("wald", "profile")
+    assert not prepare_fit(SAROSI, seen[0], intervals=intervals)
+    assert entries(cache_dir) == [] and _export_cache._LOADED == {}
+    pamid.fit_least_squares(bench, intervals=intervals)  # the programs, kept on disk
+    assert len(entries(cache_dir)) == 2  # the solve with its statistics, the profile
+    monkeypatch.setattr(_export_cache, "_LOADED", {})  # as in a new process
+    assert prepare_fit(SAROSI, seen[0], intervals=intervals)
+    loaded = dict(_export_cache._LOADED)
+    assert len(loaded) == 2 and all(p is not None for p in loaded.values())
+    fit = pamid.fit_least_squares(bench, intervals=intervals)
+    assert _export_cache._LOADED == loaded and fit.converged.all()
+
+
+def test_cached_only_runs_what_is_on_disk_and_compiles_nothing(cache_dir, monkeypatch):
+    from pamid._fit._batch import map_lanes
+
+    fn = lambda a: a * 5.0  # noqa: E731
+    a = np.arange(4.0)
+    with _export_cache.cached_only():
+        with pytest.raises(_export_cache.NotCached):
+            _export_cache.call(("five",), fn, a)
+        with pytest.raises(_export_cache.NotCached):  # no key: it would be compiled
+            map_lanes(fn, a)
+    assert entries(cache_dir) == []
+    _export_cache.call(("five",), fn, a)  # kept on disk now
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    with _export_cache.cached_only():
+        np.testing.assert_array_equal(_export_cache.call(("five",), fn, a), a * 5.0)
+    assert not _export_cache.only_cached()
+    np.testing.assert_array_equal(map_lanes(fn, a), a * 5.0)  # outside: as before
 
 
 def test_python_scalars_among_the_inputs(cache_dir):

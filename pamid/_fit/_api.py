@@ -327,38 +327,51 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
 
 
 def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton",
-                intervals: tuple[str, ...] = ("wald",), starts: int | None = None) -> None:
-    """Compile, or read from the disk caches, the programs that :func:`fit_least_squares`
-    runs first on muscles of ``rows_per_muscle`` rows (one count per muscle): the first
-    solve with its statistics and the profile intervals. Each runs once on as many lanes
-    as one of the fit's calls takes, of weight zero (nothing to fit: it returns at once),
-    in the arrays' types the fit will pass. ``pamid fit`` runs this on a thread of its own
-    while it reads the rest of the file (``load_bench``'s ``on_rows``); programs of other
-    shapes (a second try, a refit within bounds) are still made where they run. On several
-    devices it does nothing (those calls do not go through the programs kept on disk)."""
-    from ._batch import default_chunk
+                intervals: tuple[str, ...] = ("wald",)) -> bool:
+    """Load, from the disk caches only, the programs that :func:`fit_least_squares` runs
+    first on muscles of ``rows_per_muscle`` rows (one count per muscle): the first solve
+    (from one start, the fit's default) with its statistics, and the profile intervals.
+    Each runs once on one call's lanes, as many as a call of the fit takes and in the
+    arrays' type it takes them (:func:`._batch.call_layout`), of weight zero, so that it
+    returns at once. No program is compiled: at the first one not kept on disk it stops
+    (:func:`._export_cache.cached_only`), and the fit compiles that one where it runs. (The
+    constants a model is linear in are found here where not known yet, as the fit would.)
+    ``pamid fit`` runs this on a thread of its own while it reads the rest of the file
+    (``load_bench``'s ``on_rows``). Does nothing on several devices (those calls do not go
+    through the programs kept on disk). Returns whether every program was loaded."""
+    from . import _export_cache
+    from ._batch import call_layout, default_chunk
     from ._sharding import lane_devices
 
     counts = np.asarray(rows_per_muscle)
-    if counts.size == 0 or len(lane_devices()) > 1:
-        return
-    m, n = min(counts.size, default_chunk()), int(counts.max())
-    # One call's lanes come as the packed arrays when they are all the muscles, else as
-    # NumPy slices (map_lanes): the compiled call is keyed by the type too.
-    put = jax.device_put if m == counts.size else (lambda a: a)
-    zeros = lambda dtype=np.float64: put(np.zeros((m, n), dtype=dtype))  # noqa: E731
+    devices = lane_devices()
+    if counts.size == 0 or len(devices) > 1:
+        return False
+    cpu, n = devices[0].platform == "cpu", int(counts.max())
     n_x = len(spec.to_x(*(np.zeros(1) for _ in spec.columns)))
-    data = FitData(x=tuple(zeros() for _ in range(n_x)), y=zeros(), w=zeros(),
-                   curve=zeros(np.int64))
-    k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
-    with np.errstate(all="ignore"):  # no muscle, nothing to warn about
-        _, stats, _, _ = first_solve(spec, data, solver=solver, starts=k,
-                                     with_statistics=True)
-        if stats is None:
-            statistics(spec, np.zeros((m, spec.n_params)), data, lag1=True)
-        if "profile" in intervals:
-            nan = np.full((m, spec.n_params), np.nan)  # no end to look for: it stops at once
-            _intervals.profile(spec, data, nan, nan, np.ones(m), np.zeros(m), np.ones(m))
+
+    def lanes(chunk):
+        m, host = call_layout(counts.size, chunk, cpu)
+        put = (lambda a: a) if host else jax.device_put
+        zeros = lambda dtype=np.float64: put(np.zeros((m, n), dtype=dtype))  # noqa: E731
+        return m, FitData(x=tuple(zeros() for _ in range(n_x)), y=zeros(), w=zeros(),
+                          curve=zeros(np.int64))
+
+    try:
+        with _export_cache.cached_only(), np.errstate(all="ignore"):  # no muscle: no warning
+            m, data = lanes(default_chunk())
+            _, stats, _, _ = first_solve(spec, data, solver=solver, starts=DEFAULT_STARTS,
+                                         with_statistics=True)
+            if stats is None:
+                statistics(spec, np.zeros((m, spec.n_params)), data, lag1=True)
+            if "profile" in intervals:
+                m, data = lanes(_intervals._profile_chunk(spec, spec.n_params)
+                                or default_chunk())
+                nan = np.full((m, spec.n_params), np.nan)  # no end to look for: stops at once
+                _intervals.profile(spec, data, nan, nan, np.ones(m), np.zeros(m), np.ones(m))
+    except _export_cache.NotCached:
+        return False
+    return True
 
 
 def fit_least_squares(

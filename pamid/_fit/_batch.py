@@ -209,16 +209,28 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     # worker thread (jax.default_device is a per-thread setting).
     pinned = chosen_devices() is not None or jax.config.jax_default_device is not None
     device = devices[0] if pinned else None
-    workers = _cpu_workers() if devices[0].platform == "cpu" else 1
+    cpu = devices[0].platform == "cpu"
     if cache_key is not None:
         fn = functools.partial(_export_cache.call, cache_key, fn)
-    return _map_lanes_one_device(fn, arrays, n, chunk, device, workers)
+    elif _export_cache.only_cached():
+        raise _export_cache.NotCached("a call that is not kept on disk")
+    return _map_lanes_one_device(fn, arrays, n, chunk, device, cpu)
 
 
-def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
+def call_layout(n: int, chunk: int, cpu: bool = True) -> tuple[int, bool]:
+    """How :func:`map_lanes` calls its function on one device for ``n`` lanes in calls of
+    at most ``chunk``: the lanes of a call, and whether a call's arrays are NumPy views of
+    those given (on the CPU, where the lanes take several calls) rather than the given arrays
+    themselves (one call) or slices of them on the device. A compiled call is keyed by the
+    arrays' type as well as their shapes (``prepare_fit`` makes the same calls)."""
+    return (n, False) if n <= chunk else (chunk, cpu)
+
+
+def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
     import jax
 
-    if n <= chunk:
+    size, host = call_layout(n, chunk, cpu)
+    if size == n:
         return jax.tree.map(np.asarray, fn(*arrays))
     starts = range(0, n, chunk)
 
@@ -238,11 +250,12 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, workers):
                 out = fn(*part)
         return jax.tree.map(lambda a: np.asarray(a)[start - first :], out)
 
-    workers = min(len(starts), workers)
-    if workers > 1:
+    if host:
         # On the CPU as NumPy (no copy): slicing a JAX array is an operation queued on the
         # device behind the running chunks (the same README section, (d)).
         arrays = jax.tree.map(np.asarray, arrays)
+    workers = min(len(starts), _cpu_workers() if cpu else 1)
+    if workers > 1:
         # A CPU device runs pamid's small kernels on one core per call, and calls made from
         # several threads run side by side (JAX releases the GIL while XLA runs): two
         # threads on two cores nearly halve the Sárosi solve of 10,000 muscles

@@ -20,6 +20,7 @@ The exported program runs on one device; sharded calls do not come here.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import re
@@ -33,6 +34,31 @@ from .._io import write_bytes_atomic
 _DIR: Path | None = None
 _LOCK = threading.Lock()
 _LOADED: dict[str, object] = {}  # key → jitted exported.call, or None: run the function
+_THREAD = threading.local()  # .cached_only: see cached_only()
+
+
+class NotCached(LookupError):
+    """Raised by :func:`call` inside :func:`cached_only` for a program not kept on disk."""
+
+
+def only_cached() -> bool:
+    """Whether this thread is inside :func:`cached_only`."""
+    return getattr(_THREAD, "cached_only", False)
+
+
+@contextlib.contextmanager
+def cached_only():
+    """Within this block, on this thread, :func:`call` runs only programs that are kept on
+    disk (or loaded already) and raises :class:`NotCached` for any other, which it would
+    have to trace and compile: for a warm-up that should load what is there and compile
+    nothing (``pamid fit``'s, while it reads its file: a file refused by its later checks is
+    told at once, not after a compile)."""
+    before = getattr(_THREAD, "cached_only", False)
+    _THREAD.cached_only = True
+    try:
+        yield
+    finally:
+        _THREAD.cached_only = before
 
 
 def enable(directory) -> None:
@@ -215,13 +241,20 @@ def call(name: tuple, fn, *args):
     """``fn(*args)``, through the exported program of ``fn`` for these input shapes when the
     cache is on. ``name`` must identify ``fn`` and everything it closes over (static
     arguments); ``args`` are pytrees of arrays (NumPy or JAX)."""
+    only = only_cached()
     if _DIR is None:
+        if only:
+            raise NotCached(name)
         return fn(*args)
     key = _key(name, args)
     with _LOCK:
         if key not in _LOADED:
+            if only and not (_DIR / f"{key}.jaxexport").exists():
+                raise NotCached(name)
             _LOADED[key] = _load_or_export(key, fn, args)
         program = _LOADED[key]
+    if program is None and only:
+        raise NotCached(name)
     return fn(*args) if program is None else program(*args)
 
 
