@@ -118,9 +118,13 @@ class _SwallowsCtrlC:
     has one): the handler's KeyboardInterrupt is printed as "ignored" and dropped."""
 
     def __del__(self):
-        os.kill(os.getpid(), signal.SIGINT)
-        for _ in range(10_000):  # the handler runs between these bytecodes
-            pass
+        gc.disable()  # the handler runs here, not in a collector's callback (see _kill)
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(10_000):  # the handler runs between these bytecodes
+                pass
+        finally:
+            gc.enable()
 
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
