@@ -158,10 +158,12 @@ def solve(
     """Fit ``spec`` to every muscle of ``data`` in one compiled call.
 
     Returns ``(theta, converged, n_steps)`` as NumPy arrays with a leading muscle axis.
-    ``with_statistics`` (not with ``bounds``): the same call also returns, as a fourth item,
-    :func:`statistics` ``(..., lag1=True)`` at those constants: one program and one pass of
-    the chunk's samples fewer than a second call (benchmarks/README.md, "The solve and its
-    statistics in one program").
+    ``with_statistics`` (not with ``bounds``): a fourth item, :func:`statistics`
+    ``(..., lag1=True)`` at those constants from the same compiled call where the model's
+    registered Gauss–Newton kernel solves (one program and one pass of the chunk's samples
+    fewer than a second call: benchmarks/README.md, "The solve and its statistics in one
+    program"), else None: for the other solvers the statistics' own program, one for all
+    of them, is compiled once rather than into each.
     """
     if with_statistics and bounds is not None:
         raise ValueError("with_statistics is for fits without bounds")
@@ -178,7 +180,7 @@ def solve(
         if with_statistics:
             out = map_lanes(
                 lambda x, y, w, c, *t0: _fit_statistics(
-                    spec, None, x, y, w, c, *t0, max_steps=max_steps, rtol=rtol, atol=atol
+                    spec, x, y, w, c, *t0, max_steps=max_steps, rtol=rtol, atol=atol
                 ),
                 data.x, data.y, data.w, data.curve, *start,
                 cache_key=(f"{fast.key}_gauss_newton_statistics", max_steps, rtol, atol),
@@ -205,21 +207,14 @@ def solve(
             ),
             theta0, data.x, data.y, data.w,
         )
-    elif with_statistics:
-        return _solved(*map_lanes(
-            lambda t0, x, y, w, c: _fit_statistics(
-                spec, solver, x, y, w, c, t0, max_steps=max_steps, rtol=rtol, atol=atol
-            ),
-            theta0, data.x, data.y, data.w, data.curve,
-            cache_key=_key("solve_statistics", spec, solver, max_steps, rtol, atol),
-        ))
     else:
         theta, ok, steps = map_lanes(
             lambda t0, x, y, w: _solve_batch(spec, solver, t0, x, y, w, max_steps, rtol, atol),
             theta0, data.x, data.y, data.w,
             cache_key=_key("solve", spec, solver, max_steps, rtol, atol),
         )
-    return _solved(theta, ok, steps)
+    out = _solved(theta, ok, steps)
+    return (*out, None) if with_statistics else out
 
 
 def _solved(theta, ok, steps, stats=None):
@@ -231,17 +226,13 @@ def _solved(theta, ok, steps, stats=None):
     return out if stats is None else (*out, tuple(np.asarray(a) for a in stats))
 
 
-@functools.partial(jax.jit, static_argnames=("spec", "solver", "max_steps", "rtol", "atol"))
-def _fit_statistics(spec, solver, x, y, w, curve, *theta0, max_steps, rtol, atol):
-    """The solve of :func:`solve` and :func:`statistics` (with the lag-1 sums within
-    ``curve``) at its result, in one program: ``solver`` None is the model's registered
-    Gauss–Newton (from its own start without ``theta0``)."""
-    if solver is None:
-        theta, ok, steps = spec.fast_path.gauss_newton(
-            x, y, w, *theta0, max_steps=max_steps, rtol=rtol, atol=atol)
-    else:
-        theta, ok, steps = _solve_batch(spec, solver, theta0[0], x, y, w, max_steps, rtol,
-                                        atol)
+@functools.partial(jax.jit, static_argnames=("spec", "max_steps", "rtol", "atol"))
+def _fit_statistics(spec, x, y, w, curve, *theta0, max_steps, rtol, atol):
+    """The model's registered Gauss–Newton (from its own start without ``theta0``) and
+    :func:`statistics` (with the lag-1 sums within ``curve``) at its result, in one
+    program."""
+    theta, ok, steps = spec.fast_path.gauss_newton(
+        x, y, w, *theta0, max_steps=max_steps, rtol=rtol, atol=atol)
     return theta, ok, steps, _statistics_lag1(spec, theta, x, y, w, curve)
 
 
@@ -634,8 +625,8 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
        A lane whose fit without bounds found no determined optimum is marked as ran away.
 
     ``with_statistics``: the main solve of step 1 also returns the statistics at its
-    constants (:func:`solve`); they are kept in ``LaneFit.statistics`` when no lane changed
-    after it.
+    constants where it can (:func:`solve`); they are kept in ``LaneFit.statistics`` when no
+    lane changed after it.
     """
     k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
     k_retry = max(k, RETRY_STARTS)
