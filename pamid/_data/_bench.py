@@ -356,8 +356,9 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
     pressure_col = _check_required(table, l0_value)
     numbers = _numbers(table)
     labels = _muscles_and_trials(table)
+    censored = numbers.values["force_N"] == 0.0  # force maps mark lengths not held with 0 N
     if on_rows is not None:
-        kept = labels.codes if keep_censored else labels.codes[numbers.values["force_N"] != 0.0]
+        kept = labels.codes if keep_censored else labels.codes[~censored]
         counts = np.bincount(kept, minlength=len(labels.uniques))
         on_rows(counts[counts > 0])
     pressure_kpa = _pressure_kpa(table, pressure_col, numbers.values)
@@ -377,7 +378,6 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
 
     # ---- censoring ----
     n = table.n_rows
-    censored = frame["force_N"].to_numpy() == 0.0
     n_censored = int(censored.sum())
     if n_censored and not keep_censored:
         if n_censored == n:
