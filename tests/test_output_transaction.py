@@ -69,20 +69,21 @@ def _after_figure(monkeypatch, action, n: int = 1):
     monkeypatch.setattr(Figure, "savefig", savefig)
 
 
-def _kill(signum):
-    def action():
-        # With the garbage collector off until the handler has run: its callbacks (JAX's,
-        # hypothesis') run Python code, and a signal handled inside one is printed as an
-        # ignored exception (in CI, 2026-11-25), however the run then acts on it.
-        gc.disable()
-        try:
-            os.kill(os.getpid(), signum)
-            for _ in range(10_000):  # the handler runs between these bytecodes
-                pass
-        finally:
-            gc.enable()
+def _signal_here(signum):
+    """Send ``signum`` to this process and let its handler run here, with the garbage
+    collector off until it has: the collector's callbacks (JAX's, hypothesis') run Python
+    code, and a handler run inside one is printed as an ignored exception."""
+    gc.disable()
+    try:
+        os.kill(os.getpid(), signum)
+        for _ in range(10_000):  # the handler runs between these bytecodes
+            pass
+    finally:
+        gc.enable()
 
-    return action
+
+def _kill(signum):
+    return lambda: _signal_here(signum)
 
 
 def _boom():
@@ -118,13 +119,7 @@ class _SwallowsCtrlC:
     has one): the handler's KeyboardInterrupt is printed as "ignored" and dropped."""
 
     def __del__(self):
-        gc.disable()  # the handler runs here, not in a collector's callback (see _kill)
-        try:
-            os.kill(os.getpid(), signal.SIGINT)
-            for _ in range(10_000):  # the handler runs between these bytecodes
-                pass
-        finally:
-            gc.enable()
+        _signal_here(signal.SIGINT)
 
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
