@@ -125,18 +125,51 @@ def small_bench(theta31, tmp_path_factory) -> SmallBench:
     return SmallBench(theta, frame, bench, pamid.bench_to_fit_data(bench), frame_groups(frame))
 
 
+#: What the run's compilation cache keeps: programs that took at least this long to compile.
+#: The many small programs of eager array operations (tens of milliseconds each) are as
+#: quick to compile again as to read back.
+CACHE_MIN_COMPILE_S = 0.1
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _compilation_cache_of_the_run(tmp_path_factory):
-    """Commands run in-process (``pamid._cli.main``) keep their compilation cache in a
-    folder of this test run, never in the user's ``~/.cache/pamid``."""
-    cache = tmp_path_factory.mktemp("jax-cache-in-process")
-    before = os.environ.get("PAMID_CACHE_DIR")
-    os.environ["PAMID_CACHE_DIR"] = str(cache)
+    """One compilation cache for the whole test run, empty when it starts: both workers,
+    every command, script and notebook kernel they start, and the commands run in-process
+    (``pamid._cli.main``) read and write it, so a program is compiled once per run, not
+    once per process (two thirds of the suite's time was XLA compiling, much of it the
+    same programs in several processes). Never the user's ``~/.cache/pamid``.
+
+    JAX's cache is keyed by the compiled program itself (its HLO, the compiler options and
+    versions), so a test gets what it would have compiled; pamid's own cache of traced
+    programs (``exported``) stays off in-process, as a library user has it. Two workers may
+    write one entry at the same moment: JAX then reads a torn entry as a miss (a warning)
+    and compiles."""
+    import jax
+    from jax.experimental.compilation_cache import compilation_cache
+
+    base = tmp_path_factory.getbasetemp()
+    # Under pytest-xdist each worker has its own base folder inside the run's.
+    cache = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "jax-cache"
+    cache.mkdir(exist_ok=True)
+    settings = {"jax_compilation_cache_dir": str(cache),
+                "jax_persistent_cache_min_compile_time_secs": CACHE_MIN_COMPILE_S,
+                "jax_persistent_cache_min_entry_size_bytes": 0}
+    env = {"PAMID_CACHE_DIR": str(cache), **{k.upper(): str(v) for k, v in settings.items()}}
+    before_env = {k: os.environ.get(k) for k in env}
+    before = {k: getattr(jax.config, k) for k in settings}
+    os.environ.update(env)  # the processes the tests start
+    for k, v in settings.items():
+        jax.config.update(k, v)
+    compilation_cache.reset_cache()  # pamid's import compiled before the cache was set
     yield
-    if before is None:
-        os.environ.pop("PAMID_CACHE_DIR", None)
-    else:
-        os.environ["PAMID_CACHE_DIR"] = before
+    for k, v in before.items():
+        jax.config.update(k, v)
+    compilation_cache.reset_cache()
+    for k, v in before_env.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
 
 
 #: The installed command, as a user runs it (in a subprocess).
