@@ -236,12 +236,13 @@ SLOWEST_FIRST = (
 @pytest.hookimpl(trylast=True)
 def pytest_sessionfinish(session):
     """A worker collects its garbage before it tells the controller it has finished, then
-    freezes what is left (``gc.freeze``). pytest's own cleanup collects five more times after
-    that; over a worker's whole heap (the programs of a run, JAX's callback on each pass)
-    that took over 5 s, the controller's limit for a finished worker, which then sent the
-    worker a SIGINT: a ``KeyboardInterrupt`` "ignored in _xla_gc_callback" was printed at
-    the end of most runs. Runs after the session's fixtures are torn down (``trylast``)
-    and before pytest-xdist reports the worker finished (its hook wraps this one)."""
+    freezes what is left (``gc.freeze``), so that pytest's own cleanup, five more
+    collections, has nothing of the run's heap to walk. execnet sends a worker that is
+    still running 5 s after the controller asked it to stop a SIGINT; a
+    ``KeyboardInterrupt`` "ignored in _xla_gc_callback" (JAX's callback on each collection)
+    was printed at the end of most runs, and in none since this hook. Runs after the
+    session's fixtures are torn down (``trylast``) and before pytest-xdist reports the worker
+    finished (its hook wraps this one)."""
     import gc
 
     if os.environ.get("PYTEST_XDIST_WORKER"):
