@@ -144,7 +144,6 @@ def _compilation_cache_of_the_run(tmp_path_factory):
     programs (``exported``) stays off in-process, as a library user has it. Two workers may
     write one entry at the same moment: JAX then reads a torn entry as a miss (a warning)
     and compiles."""
-    import jax
     from jax.experimental.compilation_cache import compilation_cache
 
     base = tmp_path_factory.getbasetemp()
@@ -178,10 +177,9 @@ PAMID = [sys.executable, "-m", "pamid._cli"]
 
 @pytest.fixture(scope="session")
 def cli_env():
-    """The environment of a command run in a subprocess: this test process' compilation
-    cache (:func:`_compilation_cache_of_the_run`), so that a program one test compiled is
-    loaded, not compiled again, by the next (a worker runs its tests one at a time: no two
-    processes write the cache at once), and the CPU."""
+    """The environment of a command run in a subprocess: the run's compilation cache
+    (:func:`_compilation_cache_of_the_run`), so that a program one test compiled is loaded,
+    not compiled again, by the next, and the CPU."""
     return {**os.environ, "JAX_PLATFORMS": "cpu"}
 
 
