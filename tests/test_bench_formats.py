@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import re
 import warnings
 from pathlib import Path
 
@@ -573,10 +574,10 @@ def test_cli_reading_options_for_fit_and_diagnose():
     for command in ("fit", "diagnose"):
         args = _parser().parse_args([command, "bench.xlsx", "--sheet", "Data", "--sep", "tab",
                                      "--decimal", ",", "--columns", "Druck=pressure_bar",
-                                     "--l0-mm", "250", "--keep-censored"])
+                                     "--l0-mm", "250", "--keep-censored", "--header-row", "4"])
         assert reading_options(args) == {
             "l0_mm": 250.0, "keep_censored": True, "sep": "tab", "decimal": ",",
-            "sheet": "Data", "columns": {"Druck": "pressure_bar"},
+            "sheet": "Data", "header_row": 4, "columns": {"Druck": "pressure_bar"},
         }
 
 
@@ -594,3 +595,191 @@ def test_fast_reader_reads_semicolon_files(tmp_path):
     table = _csv._read_csv_fast(path, str(path))
     assert table is not None and table.n_rows == 3
     assert _csv._read_csv_fast(write(tmp_path, EXCEL_DE.replace("A;", '"A";')), "q") is None
+
+
+# ----------------------------------------------------------------------------------------
+# A lab's workbook as labs keep it: one sheet per muscle, notes and the resting length
+# above the header, "Inflated length | strain | Pressure | Force | P/DP"
+# ----------------------------------------------------------------------------------------
+
+def raises_text(path, text, **kwargs) -> BenchDataError:
+    """:func:`raises` for a message given as plain text (no pattern)."""
+    return raises(path, re.escape(text), **kwargs)
+
+
+LAB_COLUMNS = {"Inflated length": "length_mm", "Pressure": "pressure_kPa", "Force": "force_N",
+               "resting length": "l0_mm"}
+LAB_MAP = "Inflated length=length_mm,Pressure=pressure_kPa,Force=force_N,resting length=l0_mm"
+
+
+def _lab_rows(rng, l0_mm: float) -> list[list]:
+    """A hand-logged isometric map of one muscle: three lengths, the pressure stepped up
+    (P/DP = 1) and down (P/DP = 0) at each, logged with noise; forces from Sárosi's eq. 2.1
+    with Table 3-1's constants."""
+    from pamid.sarosi import TABLE_3_1
+
+    a1, a2, a3, a4, a5, a6 = (TABLE_3_1[f"a{k}"]["value"] for k in range(1, 7))
+    up = np.arange(150.0, 601.0, 50.0)
+    rows = []
+    for kappa in (4.0, 9.0, 14.0):
+        for flag, pressures in ((1, up), (0, up[::-1])):
+            for p_set in pressures:
+                p = p_set + rng.normal(0.0, 3.0)
+                k = kappa + rng.normal(0.0, 0.15)
+                bar = p / 100.0
+                force = ((a1 * bar + a2) * np.exp(a3 * k) + a4 * k * bar + a5 * bar + a6
+                         + rng.normal(0.0, 4.0))
+                rows.append([round(l0_mm * (1 - k / 100), 1), round(k / 100, 4), round(p, 1),
+                             round(float(force), 1), flag])
+    return rows
+
+
+def write_lab_workbook(path: Path, lengths=(300, 250), notes_sheet: bool = False) -> Path:
+    """Sheets named like ``300mm``: a note in row 1, "resting length | 300 | mm" in row 2,
+    a blank row, the header in row 4 and the data from row 5."""
+    rng = np.random.default_rng(7)
+    sheets = {}
+    for l0 in lengths:
+        sheets[f"{l0}mm"] = [
+            [f"Festo tube cut to {l0} mm, logged by hand on 2024-03-01", None, None],
+            ["resting length", l0, "mm"],
+            [None],
+            ["Inflated length", "strain", "Pressure", "Force", "P/DP"],
+            *_lab_rows(rng, float(l0)),
+        ]
+    if notes_sheet:
+        sheets["Notes"] = [["Pressure sensor: SPTE, zeroed daily"], ["Operator: A. B."]]
+    return write_xlsx(path, sheets)
+
+
+def test_lab_workbook_header_found_below_notes(tmp_path):
+    """Was: "the header has no name in cell B1" (the note in row 1 taken as the header)."""
+    path = write_lab_workbook(tmp_path / "lab.xlsx")
+    data = load_bench(path, sheet="300mm", columns=LAB_COLUMNS)
+    frame = data.frame
+    assert len(frame) == 60 and data.l0_mm == {"muscle": 300.0}
+    assert frame["source_row"].iloc[0] == 1
+    np.testing.assert_allclose(frame["contraction_pct"],
+                               100 * (300 - frame["length_mm"]) / 300)
+    assert frame["strain"].iloc[0] == pytest.approx(frame["contraction_pct"].iloc[0] / 100,
+                                                    abs=2e-3)
+    # errors name the cell below the header (row 4), not row 1
+    err = raises_text(write_lab_workbook(tmp_path / "unmapped.xlsx"), "no unit in the column name",
+                 sheet="300mm")
+    assert (err.sheet, err.column) == ("300mm", "Pressure")
+    assert "--columns 'Pressure=pressure_kPa'" in str(err)
+
+
+def test_lab_workbook_header_row_option(tmp_path):
+    path = write_lab_workbook(tmp_path / "lab.xlsx")
+    auto = load_bench(path, sheet="250mm", columns=LAB_COLUMNS)
+    given = load_bench(path, sheet="250mm", columns=LAB_COLUMNS, header_row=4)
+    pd.testing.assert_frame_equal(auto.frame, given.frame)
+    # a wrong row: a clear error naming the file, the sheet, the row and where the header is
+    err = raises_text(path, "--header-row 5 (header_row=5): row 5 holds numbers (cell A5 is",
+                 sheet="250mm", columns=LAB_COLUMNS, header_row=5)
+    assert err.sheet == "250mm"
+    assert str(err).startswith(f"{path}, sheet '250mm': ")
+    assert "row 4 names pamid's columns (--header-row 4" in str(err)
+    raises_text(path, "row 1 ('Festo tube cut to 250 mm, logged by hand on 2024-03-01') names "
+                 "none of pamid's columns; row 4 names", sheet="250mm", header_row=1)
+    raises_text(path, "row 3 of the sheet is empty", sheet="250mm", header_row=3)
+    raises_text(path, "row 999 of the sheet is below the last filled row 64", sheet="250mm",
+           header_row=999)
+    raises_text(path, "header_row (--header-row) must be a row number, 1 or more", header_row=0)
+    raises_text(write(tmp_path, "pressure_kPa,force_N,contraction_pct\n1,2,3\n"),
+           "header_row=4 (--header-row) applies to spreadsheets", header_row=4)
+
+
+def test_lab_workbook_every_sheet_a_muscle(tmp_path):
+    path = write_lab_workbook(tmp_path / "lab.xlsx", lengths=(300, 250, 200), notes_sheet=True)
+    with pytest.warns(UserWarning, match=r"sheet 'Notes' left out: no row there names"):
+        data = load_bench(path, sheet="all", columns=LAB_COLUMNS)
+    assert data.muscles == ("300mm", "250mm", "200mm") and data.has_muscle_column
+    assert data.l0_mm == {"300mm": 300.0, "250mm": 250.0, "200mm": 200.0}
+    assert data.frame.groupby("muscle", sort=False).size().tolist() == [60, 60, 60]
+    assert data.covariates == ("strain",)
+    # the resting length is each sheet's own
+    for muscle, l0 in data.l0_mm.items():
+        rows = data.for_muscle(muscle)
+        np.testing.assert_allclose(rows["contraction_pct"], 100 * (l0 - rows["length_mm"]) / l0)
+    # errors name the sheet and the cell
+    err = raises_text(path, "row 61 holds numbers", sheet="all", columns=LAB_COLUMNS,
+                 header_row=61)
+    assert err.sheet == "300mm"
+
+
+def test_lab_workbook_pressurizing_flag_is_the_direction(tmp_path):
+    path = write_lab_workbook(tmp_path / "lab.xlsx")
+    data = load_bench(path, sheet="300mm", columns=LAB_COLUMNS)
+    assert "pressurizing" not in data.frame and "P/DP" not in data.frame
+    assert data.frame["direction"].tolist() == ([1] * 10 + [-1] * 10) * 3
+    # the same column in a CSV file, and under a name the user maps
+    csv = write(tmp_path, "pressure_kPa,force_N,contraction_pct,P/DP\n100,50,5,1\n200,90,5,1\n"
+                          "100,45,5,0\n")
+    assert quiet_load(csv).frame["direction"].tolist() == [1, 1, -1]
+    mapped = write(tmp_path, "pressure_kPa,force_N,contraction_pct,Ventil\n100,50,5,1\n"
+                             "200,90,5,0\n", "mapped.csv")
+    assert quiet_load(mapped, columns={"Ventil": "pressurizing"}).frame["direction"].tolist() \
+        == [1, -1]
+    # anything but 0 and 1 is an error naming the file, sheet, column, row and cell
+    from openpyxl import load_workbook
+
+    book = load_workbook(path)
+    book["300mm"]["E7"] = 2
+    book.save(path)
+    err = raises_text(path, "a pressurizing flag must be 1 (pressurizing) or 0 (depressurizing), "
+                       "got 2", sheet="300mm", columns=LAB_COLUMNS)
+    assert (err.column, err.row, err.sheet, err.cell) == ("P/DP", 3, "300mm", "E7")
+    both = write(tmp_path, "pressure_kPa,force_N,contraction_pct,P/DP,direction\n"
+                           "100,50,5,1,1\n", "both.csv")
+    raises_text(both, "both a direction column ('direction') and a pressurizing flag")
+
+
+def test_values_above_the_header_only_when_mapped(tmp_path):
+    path = write_lab_workbook(tmp_path / "lab.xlsx")
+    unmapped = {k: v for k, v in LAB_COLUMNS.items() if k != "resting length"}
+    # never guessed: without the mapping the resting length is not read
+    raises_text(path, "length_mm is given without contraction_pct", sheet="300mm",
+           columns=unmapped)
+    assert load_bench(path, sheet="300mm", columns=unmapped, l0_mm=300).l0_mm == {
+        "muscle": 300.0}
+    # a label with a colon; its value not a number: the error names the cell
+    from openpyxl import load_workbook
+
+    book = load_workbook(path)
+    book["300mm"]["A2"] = "resting length:"
+    book["300mm"]["B2"] = "three hundred"
+    book.save(path)
+    err = raises_text(path, "'three hundred' is not a number (the value in sheet '300mm', cell B2)",
+                 sheet="300mm", columns=LAB_COLUMNS)
+    assert err.column == "resting length"
+    book["300mm"]["B2"] = None
+    book["300mm"]["C2"] = None
+    book.save(path)
+    raises_text(path, "the label 'resting length' (cell A2) has no value in a cell to its right",
+           sheet="300mm", columns=LAB_COLUMNS)
+    raises_text(path, "the column mapping names 'rest length', which the file does not have",
+           sheet="300mm", columns={**unmapped, "rest length": "l0_mm"})
+
+
+def test_every_sheet_a_muscle_refuses_a_muscle_column(tmp_path):
+    path = write_xlsx(tmp_path / "b.xlsx", {"A": SHEET, "B": SHEET})
+    raises_text(path, "with sheet='all' (--sheet all) each sheet is one muscle", sheet="all")
+
+
+def test_cli_fits_the_lab_workbook(tmp_path, pamid_cli):
+    """``pamid fit FILE.xlsx --sheet 300mm`` was: "the header has no name in cell B1"."""
+    path = write_lab_workbook(tmp_path / "lab.xlsx")
+    res = pamid_cli(["fit", path, "--sheet", "all", "--columns", LAB_MAP, "--json",
+                     "--intervals", "wald"])
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    assert [m["muscle"] for m in out["muscles"]] == ["300mm", "250mm"]
+    assert all(m["converged"] and m["rmse_N"] < 6.0 for m in out["muscles"])
+    res = pamid_cli(["fit", path, "--sheet", "300mm", "--columns", LAB_MAP, "--header-row",
+                     "5", "--json"])
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    assert f"{path}, sheet '300mm': --header-row 5" in res.stderr
+    res = pamid_cli(["fit", path, "--header-row", "0"])
+    assert res.returncode == 2 and "expected a row number, 1 or more" in res.stderr

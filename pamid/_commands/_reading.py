@@ -1,8 +1,9 @@
 """Command-line options for reading a bench file, shared by ``pamid fit`` and ``pamid diagnose``.
 
 :func:`add_reading_arguments` adds ``--l0-mm``, ``--keep-censored``, ``--sep``,
-``--decimal``, ``--sheet`` and ``--columns`` to a parser; :func:`reading_options` turns the
-parsed arguments into the keyword arguments of :func:`pamid.load_bench`.
+``--decimal``, ``--sheet``, ``--header-row`` and ``--columns`` to a parser;
+:func:`reading_options` turns the parsed arguments into the keyword arguments of
+:func:`pamid.load_bench`.
 """
 
 from __future__ import annotations
@@ -25,10 +26,28 @@ def add_reading_arguments(parser: argparse.ArgumentParser) -> None:
                        help="decimal mark of numbers written as text (default: detected; a "
                             "comma in ';'- or tab-separated files written like 499,911)")
     group.add_argument("--sheet", metavar="NAME",
-                       help="spreadsheet (.xlsx, .ods, ...) sheet to read (default: the first)")
+                       help="spreadsheet (.xlsx, .ods, ...) sheet to read (default: the "
+                            "first); 'all': every sheet, each one muscle named by its sheet")
+    group.add_argument("--header-row", metavar="N", type=_row_number, dest="header_row",
+                       help="spreadsheets: the header's row, as the sheet numbers it "
+                            "(default: the first row naming known columns; rows above are "
+                            "notes)")
     group.add_argument("--columns", metavar="MAP", type=parse_column_mapping,
                        help="map the file's headers to pamid's names, e.g. "
-                            "'Druck=pressure_bar,Kraft=force_N'")
+                            "'Druck=pressure_bar,Kraft=force_N'; in a spreadsheet, a label "
+                            "written above the header with its value to its right gives "
+                            "that value to every row: 'resting length=l0_mm'")
+
+
+def _row_number(text: str) -> int:
+    """A spreadsheet row number: a whole number, 1 or more."""
+    try:
+        number = int(text)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"expected a row number, 1 or more; got {text!r}")
+    return number
 
 
 def parse_column_mapping(text: str) -> dict[str, str]:
@@ -57,5 +76,6 @@ def reading_options(args: argparse.Namespace) -> dict:
         "sep": args.sep,
         "decimal": args.decimal,
         "sheet": args.sheet,
+        "header_row": args.header_row,
         "columns": args.columns,
     }

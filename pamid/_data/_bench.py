@@ -48,13 +48,13 @@ The reader comes from the registry of formats (:mod:`._readers`): CSV (:mod:`._c
 delimiter and decimal mark are detected; ``sep=`` and ``decimal=`` override them; a plain
 file is read column by column with pyarrow, any other cell by cell, with the same result;
 ``PAMID_FAST_CSV=0`` in the environment reads every file cell by cell, to time the two or to
-rule the fast reader out),
-Parquet (:mod:`._parquet`), and ``.xlsx``, ``.xlsm``, ``.xlsb``, ``.xls``, ``.ods``
-(:mod:`._spreadsheet`: the first sheet unless ``sheet=`` names one; a date or time cell in a
-numeric column is an error). A pipe, a FIFO or ``/dev/stdin`` is read once, whole, and its
-first byte must arrive within :data:`~pamid._data._streams.STREAM_TIMEOUT_S` (10 s); one
-without an extension is read as the format its first bytes name, else as CSV
-(:mod:`._streams`).
+rule the fast reader out), Parquet (:mod:`._parquet`), and ``.xlsx``, ``.xlsm``, ``.xlsb``,
+``.xls``, ``.ods`` (:mod:`._spreadsheet`: the first sheet unless ``sheet=`` names one, or
+every sheet as a muscle with ``sheet="all"``; the header below notes found or given by
+``header_row=``; a date or time cell in a numeric column is an error). A pipe, a FIFO or
+``/dev/stdin`` is read once, whole, and its first byte must arrive within
+:data:`~pamid._data._streams.STREAM_TIMEOUT_S` (10 s); one without an extension is read as
+the format its first bytes name, else as CSV (:mod:`._streams`).
 
 Censoring
 ---------
@@ -77,11 +77,26 @@ import pandas as pd
 
 from .._errors import BenchDataError
 from .._units import ATMOSPHERE_KPA, pressure_text_to_kPa, pressure_to_kPa
-from ._cells import _LABELS, DECIMAL_MARKS, PRESSURE_COLUMNS, _blank_ok, _quantity_of
+from ._cells import (
+    _LABELS,
+    DECIMAL_MARKS,
+    FLAG_COLUMNS,
+    PRESSURE_COLUMNS,
+    _blank_ok,
+    _quantity_of,
+)
 from ._checks import _check_missing, _check_time_increases, _check_units, _first_true
-from ._readers import reader_for, readers_taking
+from ._readers import ALL_SHEETS, reader_for, readers_taking
 from ._streams import _stream_bytes
-from ._table import _as_floats, _first_problem, _is_numeric_extra, _Table, _text_values
+from ._table import (
+    NoTable,
+    _as_floats,
+    _Column,
+    _first_problem,
+    _is_numeric_extra,
+    _Table,
+    _text_values,
+)
 
 __all__ = ["BenchData", "CensoredRowsWarning", "MissingValuesWarning", "load_bench"]
 
@@ -186,6 +201,7 @@ def load_bench(
     sep: str | None = None,
     decimal: str | None = None,
     sheet: str | None = None,
+    header_row: int | None = None,
     columns: dict[str, str] | None = None,
     on_rows=None,
 ) -> BenchData:
@@ -215,10 +231,20 @@ def load_bench(
         by default (a comma in a semicolon- or tab-separated file whose numbers read like
         ``499,911``).
     sheet:
-        Spreadsheets only: the name of the sheet to read (default: the first).
+        Spreadsheets only: the name of the sheet to read (default: the first), or
+        ``"all"``: every sheet, each one muscle named by its sheet (a sheet where no row
+        names pamid's columns, notes say, is left out with a warning).
+    header_row:
+        Spreadsheets only: the header's row, 1-based as the sheet shows it. By default the
+        header is the first row whose cells name known columns (``Pressure [kPa]``,
+        ``force_N``, ``P/DP``, a header of ``columns``...; no number cell), rows above it
+        being notes; else the first filled row.
     columns:
         Maps headers of the file to pamid's names, e.g. ``{"Druck": "pressure_bar",
-        "Kraft": "force_N"}``, for namings pamid does not recognise by itself.
+        "Kraft": "force_N"}``, for namings pamid does not recognise by itself. In a
+        spreadsheet, a header that is not in the header row but written as a label above
+        it (``{"resting length": "l0_mm"}``; a trailing colon is ignored) takes the value in
+        the next filled cell to the label's right, for every row of the sheet.
     on_rows:
         Called with the number of rows each muscle keeps (an int array, muscles in the
         order of the file) as soon as the muscles are known, before the remaining checks
@@ -258,16 +284,26 @@ def load_bench(
     else:
         l0_value = None
     sep = _check_reading_options(shown, sep, decimal, columns)
+    if header_row is not None and (
+        isinstance(header_row, bool) or not isinstance(header_row, (int, np.integer))
+        or header_row < 1
+    ):
+        raise BenchDataError(
+            shown, f"header_row (--header-row) must be a row number, 1 or more, as the "
+                   f"spreadsheet shows it; got {header_row!r}")
 
     # A pipe, FIFO or /dev/stdin is read here, once, and its bytes handed to every reader
     # that looks at the file (None for a regular file).
     stream = _stream_bytes(p, shown)
     reader = reader_for(p, stream)
-    options = {"sheet": sheet, "sep": sep, "decimal": decimal}
+    options = {"sheet": sheet, "header_row": header_row, "sep": sep, "decimal": decimal}
     options = {name: value for name, value in options.items() if value is not None}
     for name, value in options.items():
         if name not in reader.options:
             raise BenchDataError(shown, _not_applicable(name, value))
+    if sheet == ALL_SHEETS and reader.parts is not None:
+        return _load_sheets(p, shown, stream, reader, options, columns, l0_value,
+                            keep_censored, on_rows)
     if reader.fast is not None:
         table = reader.fast(p, shown, data=stream, columns=columns, **options)
         if table is not None:
@@ -276,9 +312,88 @@ def load_bench(
             except BenchDataError:
                 pass  # the reference reader finds the problem again and words it exactly
             del table
-    table = reader.read(p, shown, data=stream, **options)
+    table = reader.read(p, shown, data=stream, columns=columns, **options)
     table.rename(columns)
     return _interpret(table, l0_value, keep_censored, on_rows)
+
+
+def _load_sheets(p: Path, shown: str, stream, reader, options: dict, columns, l0_value,
+                 keep_censored: bool, on_rows) -> BenchData:
+    """``load_bench(sheet="all")``: every sheet of a workbook read and checked as one muscle,
+    named by its sheet (a sheet with a ``muscle`` column of its own is an error); the
+    muscles in sheet order. A sheet where no row names pamid's columns is left out with a
+    warning (unless ``header_row`` says where the header is); warnings name their sheet;
+    columns that some sheets lack are not recorded there (NaN), with a warning.
+    ``source_row`` counts the data rows of each sheet."""
+    options = {name: value for name, value in options.items() if name != "sheet"}
+    benches: list[BenchData] = []
+    skipped: list[str] = []
+    for name in reader.parts(p, shown, data=stream):
+        try:
+            table = reader.read(p, shown, data=stream, columns=columns, sheet=name,
+                                need_header="header_row" not in options, **options)
+        except NoTable:
+            skipped.append(name)
+            continue
+        table.rename(columns)
+        if "muscle" in table.names:
+            raise table.error(
+                "with sheet='all' (--sheet all) each sheet is one muscle, named by the "
+                "sheet, but this sheet has a muscle column of its own; read it alone with "
+                f"sheet={name!r} (--sheet '{name}')",
+                column="muscle",
+            )
+        table.names.insert(0, "muscle")
+        ids = [name] * table.n_rows
+        table.columns = {"muscle": _Column("muscle", text=ids, original=ids),
+                         **table.columns}
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            benches.append(_interpret(table, l0_value, keep_censored))
+        for w in caught:  # the same warnings, saying which sheet
+            text = str(w.message).replace(f"{shown}: ", f"{shown}, sheet '{name}': ", 1)
+            message = (MissingValuesWarning(text, w.message.counts)
+                       if isinstance(w.message, MissingValuesWarning) else text)
+            warnings.warn(message, w.category, stacklevel=3)
+    if skipped:
+        listed = ", ".join(f"'{name}'" for name in skipped)
+        if not benches:
+            raise BenchDataError(
+                shown, f"no sheet holds a table: no row of {listed} names two of pamid's "
+                       "columns (map the lab's names with columns=..., --columns, or say "
+                       "the header's row with header_row=, --header-row)")
+        warnings.warn(f"{shown}: sheet{'s' if len(skipped) > 1 else ''} {listed} left out: "
+                      "no row there names pamid's columns (notes?)", UserWarning,
+                      stacklevel=3)
+    frame = pd.concat([b.frame for b in benches], ignore_index=True, sort=False)
+    lacking = {
+        column: [b.muscles[0] for b in benches if column not in b.frame.columns]
+        for column in frame.columns
+    }
+    lacking = {column: sheets for column, sheets in lacking.items() if sheets}
+    if lacking:
+        counts = {column: int(sum(len(b.frame) for b in benches if b.muscles[0] in sheets))
+                  for column, sheets in lacking.items()}
+        parts = [f"{column} (sheet{'s' if len(sheets) > 1 else ''} "
+                 + ", ".join(f"'{s}'" for s in sheets) + ")"
+                 for column, sheets in lacking.items()]
+        warnings.warn(MissingValuesWarning(
+            f"{shown}: columns that some sheets lack: {'; '.join(parts)}: treated as not "
+            "recorded there", counts), stacklevel=3)
+    covariates = tuple(dict.fromkeys(c for b in benches for c in b.covariates))
+    muscles = tuple(m for b in benches for m in b.muscles)
+    if on_rows is not None:
+        on_rows(np.array([len(b.frame) for b in benches], dtype=np.int64))
+    return BenchData(
+        frame=frame,
+        path=shown,
+        has_muscle_column=True,
+        muscles=muscles,
+        l0_mm={m: v for b in benches for m, v in b.l0_mm.items()},
+        covariates=covariates,
+        n_censored=sum(b.n_censored for b in benches),
+        pressure_unit_in_file=benches[0].pressure_unit_in_file,
+    )
 
 
 def _check_reading_options(shown: str, sep, decimal, columns) -> str | None:
@@ -316,6 +431,8 @@ def _not_applicable(option: str, value) -> str:
         return f"sheet={value!r} (--sheet) applies to {formats} ({suffixes}) only"
     if option == "sep":
         return f"sep={value!r} (--sep) applies to {formats} only"
+    if option == "header_row":
+        return f"header_row={value!r} (--header-row) applies to {formats} only"
     return f"decimal= (--decimal) applies to {formats} only"
 
 
@@ -355,6 +472,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
     _check_units(table)
     pressure_col = _check_required(table, l0_value)
     numbers = _numbers(table)
+    _direction_from_flag(table, numbers)
     labels = _muscles_and_trials(table)
     censored = numbers.values["force_N"] == 0.0  # force maps mark lengths not held with 0 N
     if on_rows is not None:
@@ -435,7 +553,7 @@ def _numbers(table: _Table) -> _Numbers:
     # (Sets for every membership test: a file may have tens of thousands of columns.)
     quantities = {name: _quantity_of(name) for name in names}
     known_numeric = [
-        name for name in names if name in ("direction", "cycle") or quantities[name] is not None
+        name for name in names if name in FLAG_COLUMNS or quantities[name] is not None
     ]
     known = set(known_numeric)
     extras = [name for name in names if name not in _LABELS and name not in known]
@@ -460,6 +578,35 @@ def _numbers(table: _Table) -> _Numbers:
     blanks = {name: cols[name].blank() for name in values if _blank_ok(name)}
     blanks = {name: mask for name, mask in blanks.items() if mask.any()}
     return _Numbers(values, blanks, covariates, text_extras)
+
+
+def _direction_from_flag(table: _Table, numbers: _Numbers) -> None:
+    """A pressurizing flag (``P/DP``: 1 while pressurizing, 0 while depressurizing) as
+    ``direction`` (+1, −1; blank stays not recorded); an error for any other value, and
+    for a file that gives both."""
+    flag = numbers.values.pop("pressurizing", None)
+    if flag is None:
+        return
+    if "direction" in numbers.values:
+        other = table.file_names.get("direction", "direction")
+        raise table.error(
+            f"the file gives both a direction column ('{other}') and a pressurizing flag; "
+            "keep one of them",
+            column="pressurizing",
+        )
+    i = _first_true((flag != 0.0) & (flag != 1.0) & ~np.isnan(flag))
+    if i is not None:
+        raise table.error(
+            f"a pressurizing flag must be 1 (pressurizing) or 0 (depressurizing), got "
+            f"{table.columns['pressurizing'].raw(i)}",
+            column="pressurizing",
+            index=i,
+        )
+    numbers.values["direction"] = np.where(np.isnan(flag), np.nan, 2.0 * flag - 1.0)
+    if "pressurizing" in numbers.blanks:
+        numbers.blanks["direction"] = numbers.blanks.pop("pressurizing")
+    table.file_names.setdefault("direction", table.file_names.get("pressurizing",
+                                                                  "pressurizing"))
 
 
 def _muscles_and_trials(table: _Table) -> _Labels:

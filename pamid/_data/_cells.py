@@ -35,6 +35,10 @@ DECIMAL_MARKS: tuple[str, ...] = (".", ",")
 # (time, temperature, direction, cycle, covariates) means "not recorded".
 _STRICT_QUANTITIES = ("pressure", "force", "contraction", "length", "l0")
 
+#: Numeric columns known by name that carry no unit: whole numbers, blank where not recorded
+#: (``pressurizing`` is a 0/1 flag the loader turns into ``direction``).
+FLAG_COLUMNS: tuple[str, ...] = ("direction", "cycle", "pressurizing")
+
 # Columns read as labels (text), never as numbers.
 _LABELS = ("muscle", "trial")
 _RESERVED = ("source_row",)
@@ -65,7 +69,7 @@ def _parsed_as_float(name: str) -> bool:
     """Whether the fast reader has pyarrow parse this column (pamid's name) as float64: a
     number pamid knows by name whose text is not needed (a pressure in kPa, not in bar,
     whose kPa come from the text)."""
-    known = name in ("direction", "cycle") or _quantity_of(name) is not None
+    known = name in FLAG_COLUMNS or _quantity_of(name) is not None
     return known and name not in _LABELS and PRESSURE_COLUMNS.get(name, "kPa") == "kPa"
 
 

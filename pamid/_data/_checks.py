@@ -34,9 +34,11 @@ def _check_units(table: _Table, quantities=None) -> None:
             )
         given = name[len(quantity) + 1 :] if len(name) > len(quantity) else ""
         what = f"unknown unit '{given}'" if given else "no unit in the column name"
+        header = table.file_names.get(name, name)
         raise table.error(
             f"{what} for {quantity}; accepted units: {units} "
-            f"(name the column {' or '.join(accepted)})",
+            f"(name the column {' or '.join(accepted)}, or map it with its unit, e.g. "
+            f"--columns '{header}={accepted[0]}')",
             column=name,
         )
 

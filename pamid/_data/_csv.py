@@ -28,6 +28,7 @@ from .._errors import BenchDataError
 from .._units import pressure_text_to_kPa
 from ._cells import (
     _LABELS,
+    FLAG_COLUMNS,
     PRESSURE_COLUMNS,
     QUANTITY_UNITS,
     _all_numbers,
@@ -99,13 +100,15 @@ def _read_csv_bytes(path: Path, shown: str, data: bytes | None = None) -> bytes:
 
 def _read_csv(
     path: Path, shown: str, *, sep: str | None = None, decimal: str | None = None,
-    data: bytes | None = None,
+    data: bytes | None = None, columns: dict[str, str] | None = None,
 ) -> _Table:
     """Read a CSV file cell by cell, keeping the file line of every data row.
 
     This is the reference reader: it reads every file pamid reads as CSV and words every
     problem. ``sep`` and ``decimal`` default to those detected (:func:`_csv_dialect`).
     ``data``: the file's bytes where they were read already (a stream is read only once).
+    ``columns`` (the user's mapping) is not needed here: the header is the first line, and
+    the loader maps the names.
     """
     data = _read_csv_bytes(path, shown, data)
     sep, decimal = _csv_dialect(data, sep, decimal)
@@ -336,7 +339,7 @@ def _fast_column(
         codes, uniques = _factorize_text(chunked)
         return _Column(name, codes=codes, uniques=uniques)
     blanks = _blank_ok(name)
-    known = name in ("direction", "cycle") or _quantity_of(name) is not None
+    known = name in FLAG_COLUMNS or _quantity_of(name) is not None
     if values is None:
         values = _plain_numbers(chunked, decimal, blanks)
     elif not blanks and np.isnan(values).any():

@@ -12,6 +12,9 @@ name, leaving alone any header it does not recognise (a covariate, a note):
 * unit spellings ``%`` (pct), ``°C``/``degC`` (C), ``mm/s`` (mm_s);
 * ``muscle``, ``direction``, ``cycle`` in any case, and ``trial``, ``test`` or ``run``
   (any case) for the trial label, with or without a bracketed note (``direction [-]``);
+* a pressurizing flag, 1 while the muscle is pressurized and 0 while it is let down:
+  ``pressurizing`` (or ``pressurising``), and ``P/DP`` as labs write it (any case); the
+  loader turns it into ``direction`` (+1, −1);
 * any other naming through an explicit mapping, ``columns={"Druck": "pressure_bar"}``.
 
 A unit stays case-sensitive (``pressure [kpa]`` is an error that says so, as
@@ -66,6 +69,9 @@ IDENTIFIERS: dict[str, str] = {
     "run": "trial",
     "direction": "direction",
     "cycle": "cycle",
+    "pressurizing": "pressurizing",
+    "pressurising": "pressurizing",
+    "p/dp": "pressurizing",
 }
 
 _BRACKETED = re.compile(r"^(?P<q>.+?)\s*(?:\[(?P<u1>[^\]]*)\]|\((?P<u2>[^)]*)\))$")
@@ -111,6 +117,20 @@ def canonical_name(header: str, units: dict[str, tuple[str, ...]]) -> str:
     if quantity is not None:
         return f"{quantity}{sep}{UNIT_SPELLINGS.get(unit, unit)}"
     return header
+
+
+def known_name(header: str, units: dict[str, tuple[str, ...]],
+               columns: dict[str, str] | None = None) -> bool:
+    """Whether a (stripped) header names a column pamid knows: one the mapping ``columns``
+    names, an identifier (``muscle``, ``trial``, ``direction``, ...) or a quantity of
+    ``units`` (``Pressure [kPa]``, ``force_N``, also with a unit pamid does not accept,
+    which the loader then reports). What finds a spreadsheet's header row below notes."""
+    if not header:
+        return False
+    if columns and header in columns:
+        return True
+    name = canonical_name(header, units)
+    return name in IDENTIFIERS.values() or name.partition("_")[0] in units
 
 
 def canonical_names(

@@ -14,9 +14,10 @@ from ._table import _check_duplicates, _Column, _Table
 PARQUET_SUFFIXES: tuple[str, ...] = (".parquet", ".pq")
 
 
-def _read_parquet(path: Path, shown: str, data: bytes | None = None) -> _Table:
+def _read_parquet(path: Path, shown: str, data: bytes | None = None,
+                  columns: dict[str, str] | None = None) -> _Table:
     """Read a Parquet file with pyarrow, column by column (from ``data``, its bytes, where a
-    stream was read already)."""
+    stream was read already). ``columns``, the user's mapping, is the loader's to apply."""
     import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq

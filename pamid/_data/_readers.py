@@ -24,15 +24,17 @@ from pathlib import Path
 from ._csv import CSV_SUFFIXES, _read_csv, csv_names, read_csv_fast
 from ._parquet import PARQUET_SUFFIXES, _read_parquet, parquet_names
 from ._spreadsheet import (
+    ALL_SHEETS,
     SPREADSHEET_SIGNATURES,
     SPREADSHEET_SUFFIXES,
     read_spreadsheet,
+    sheet_names,
     spreadsheet_names,
 )
 from ._streams import read_ahead
 from ._table import _Table
 
-__all__ = ["FORMATS", "READERS", "Reader", "column_names", "reader_for"]
+__all__ = ["ALL_SHEETS", "FORMATS", "READERS", "Reader", "column_names", "reader_for"]
 
 
 @dataclass(frozen=True)
@@ -43,16 +45,23 @@ class Reader:
         name: the format in messages, plural ("CSV files", "spreadsheets").
         suffixes: the extensions read with it (lower case, with the dot).
         signatures: first bytes that mark a stream as this format; () for a text format.
-        read: ``read(path, shown, *, data=None, **options) -> _Table``, the reference reader:
-            it reads every file of the format and words every problem. ``shown`` is the path
-            as the user gave it (for messages), ``data`` a stream's bytes (read once, by the
-            caller), ``options`` those of :attr:`options` that the user gave.
+        read: ``read(path, shown, *, data=None, columns=None, **options) -> _Table``, the
+            reference reader: it reads every file of the format and words every problem.
+            ``shown`` is the path as the user gave it (for messages), ``data`` a stream's
+            bytes (read once, by the caller), ``columns`` the user's mapping of headers to
+            pamid's names (which the loader applies; a reader that looks for its header
+            among notes counts those headers as known), ``options`` those of
+            :attr:`options` that the user gave.
         names: ``names(path, shown, data=None) -> list[str]``, the header alone.
         options: the reading options of :func:`~pamid.load_bench` that apply (``"sep"``,
-            ``"decimal"``, ``"sheet"``); any other is an error naming the formats it applies to.
+            ``"decimal"``, ``"sheet"``, ``"header_row"``); any other is an error naming the
+            formats it applies to.
         fast: ``fast(path, shown, *, data=None, columns=None, **options) -> _Table | None``,
             a quicker reader that gives the table with pamid's names or declines (None) any
             file in doubt; the reference reader then reads the file and words its problem.
+        parts: ``parts(path, shown, data=None) -> list[str]``, for a format whose file
+            holds several tables (a workbook's sheets): their names, which ``read`` takes as
+            ``sheet=`` (``load_bench(sheet="all")`` reads each as a muscle).
     """
 
     name: str
@@ -62,6 +71,7 @@ class Reader:
     names: Callable[..., list[str]]
     options: tuple[str, ...] = ()
     fast: Callable[..., _Table | None] | None = None
+    parts: Callable[..., list[str]] | None = None
 
 
 #: CSV: also every file whose extension no other reader claims.
@@ -72,7 +82,7 @@ FORMATS: tuple[Reader, ...] = (
     CSV,
     Reader("Parquet files", PARQUET_SUFFIXES, (b"PAR1",), _read_parquet, parquet_names),
     Reader("spreadsheets", SPREADSHEET_SUFFIXES, SPREADSHEET_SIGNATURES, read_spreadsheet,
-           spreadsheet_names, ("sheet", "decimal")),
+           spreadsheet_names, ("sheet", "header_row", "decimal"), parts=sheet_names),
 )
 #: The reader of each extension.
 READERS: dict[str, Reader] = {suffix: reader for reader in FORMATS for suffix in reader.suffixes}
@@ -92,7 +102,8 @@ def reader_for(path: Path, stream: bytes | None) -> Reader:
 
 
 def readers_taking(option: str) -> tuple[Reader, ...]:
-    """The formats a reading option (``"sep"``, ``"decimal"``, ``"sheet"``) applies to."""
+    """The formats a reading option (``"sep"``, ``"decimal"``, ``"sheet"``,
+    ``"header_row"``) applies to."""
     return tuple(reader for reader in FORMATS if option in reader.options)
 
 

@@ -19,6 +19,11 @@ from ._cells import QUANTITY_UNITS, _all_numbers, _number_problem, _point
 from ._names import NameProblem, canonical_names
 
 
+class NoTable(BenchDataError):
+    """A part of a file that holds no table (a workbook's sheet of notes: no row names
+    pamid's columns); ``load_bench(sheet="all")`` leaves such a sheet out, with a warning."""
+
+
 @dataclass
 class _Column:
     """One column as read: text cells (CSV, Parquet strings) or numbers (Parquet numerics).
@@ -78,9 +83,16 @@ class _Table:
     file_names: dict[str, str] = field(default_factory=dict)  # name -> header in the file
     sheet: str | None = None  # spreadsheets: the sheet read ...
     letters: dict[str, str] | None = None  # ... and each column's letter(s) there
+    # Spreadsheets: columns of one value written above the header, and its cell ("B2")
+    fixed_cells: dict[str, str] | None = None
 
     def error(self, message: str, *, column: str | None = None, index: int | None = None):
         """A BenchDataError for data row ``index`` (0-based) of ``column``."""
+        fixed = (self.fixed_cells or {}).get(column) if column is not None else None
+        if fixed is not None:  # one value above the header: its cell, not a row
+            return BenchDataError(
+                self.path, f"{message} (the value in sheet '{self.sheet}', cell {fixed})",
+                column=self.file_names.get(column, column), sheet=self.sheet, cell=fixed)
         row = line = cell = None
         if index is not None:
             row = int(index) + 1
@@ -113,7 +125,12 @@ class _Table:
                                                                    strict=True)}
         if self.letters is not None:
             self.letters = {new: self.letters[old] for new, old in zip(names, self.names,
-                                                                       strict=True)}
+                                                                       strict=True)
+                            if old in self.letters}
+        if self.fixed_cells:
+            self.fixed_cells = {new: self.fixed_cells[old] for new, old
+                                in zip(names, self.names, strict=True)
+                                if old in self.fixed_cells}
         self.names = names
         self.canonical = True
 
