@@ -186,7 +186,9 @@ def _cmd_fit(args) -> int:
         stage(f"writing plots to {final_place(out)}", quiet)
         from ._report._fit import write_fit_plots
 
-        payload["plots"] = write_fit_plots(result, bench, out, args.max_plots)
+        owners: dict = {}
+        payload["plots"] = write_fit_plots(result, bench, out, args.max_plots, owners=owners)
+        payload["muscle_of_file"] = owners
         write_text_atomic(out / "fit.json",
                           json.dumps({**result.to_dict(), **payload}, indent=2) + "\n")
     if args.json:

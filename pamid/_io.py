@@ -220,9 +220,52 @@ def refuse_overwrite_input(
             )
 
 
-def safe_file_name(name) -> str:
-    """``name`` as a file name: letters, digits, '-', '_' and '.' kept, anything else '_'."""
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
+#: Longest piece of a file name, in UTF-8 bytes, that :func:`safe_file_name` makes of a
+#: muscle's or a trial's name: with the longest prefix ("mcmc_predictive_"), a suffix
+#: (".png") and the temporary name :func:`write_atomic` writes first
+#: (".NAME.XXXXXXXX.tmp"), a file name stays well under the 255 bytes file systems allow.
+MAX_NAME_BYTES = 160
+
+
+def _name_hash(text: str) -> str:
+    """8 hex digits of the SHA-256 of ``text``: the same in every run and on every machine."""
+    import hashlib
+
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+
+
+def safe_file_name(name, *, hashed: bool = False) -> str:
+    """``name`` (a muscle's, a trial's) as a piece of a file name that still says whose file
+    it is: letters, digits, '-', '_' and '.' kept, anything else '_', at most
+    :data:`MAX_NAME_BYTES` bytes. Where that changes the name (a character replaced, a name
+    cut short), or with ``hashed``, '-' and a hash of the name are appended, so that names
+    that read alike never share a file: 'A/B' → 'A_B-998d3ed8', 'A B' → 'A_B-fea4c5ce',
+    while 'A_B' and 'Festo10mm_lc40cm' stay as they are. The names of one command's files
+    come from :func:`safe_file_names`."""
+    text = str(name)
+    safe = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text)
+    encoded = safe.encode("utf-8")
+    if not hashed and safe == text and len(encoded) <= MAX_NAME_BYTES:
+        return safe
+    head = encoded[: MAX_NAME_BYTES - 9].decode("utf-8", "ignore")  # a whole character
+    return f"{head}-{_name_hash(text)}"
+
+
+def safe_file_names(names) -> list[str]:
+    """:func:`safe_file_name` of each of ``names`` (the muscles of one file, its trials),
+    unique among them, also where a file system does not tell capitals from small letters:
+    names whose pieces still meet ('M1' and 'm1'; a name written like another's hashed
+    piece) get the hash too, and a coincidence left after that their place in ``names``."""
+    names = list(names)
+    pieces = [safe_file_name(n) for n in names]
+    for hashed in (True, False):
+        counts: dict[str, int] = {}
+        for piece in pieces:
+            counts[piece.casefold()] = counts.get(piece.casefold(), 0) + 1
+        for i, piece in enumerate(pieces):
+            if counts[piece.casefold()] > 1:
+                pieces[i] = safe_file_name(names[i], hashed=True) if hashed else f"{piece}-{i}"
+    return pieces
 
 
 def json_ready(value):

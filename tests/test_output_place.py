@@ -108,3 +108,71 @@ def test_sigterm_while_writing_leaves_the_old_results_as_they_were(tmp_path, pam
     assert "pamid: terminated" in rest and "Traceback" not in rest
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fewer.csv", "many.csv", "out"]
+
+
+# -- every output name unique, bounded, and traceable to its muscle or trial --------------------
+
+
+def test_file_names_of_names_that_read_alike_differ_and_stay_short():
+    from pamid._io import safe_file_names
+
+    names = ["A/B", "A_B", "A B", "M" * 300, "é" * 200, "Festo10mm_lc40cm", "m1", "M1"]
+    pieces = safe_file_names(names)
+    assert len({p.casefold() for p in pieces}) == len(names)
+    assert pieces[1] == "A_B" and pieces[5] == "Festo10mm_lc40cm"  # ordinary names as they are
+    assert pieces[0].startswith("A_B-") and pieces[3].startswith("MMM")
+    assert all(len(p.encode()) <= 160 for p in pieces)
+    assert safe_file_names(names) == pieces  # stable
+    # a name written like another's hashed piece still gets a file of its own
+    assert len(set(safe_file_names(["A/B", pieces[0]]))) == 2
+
+
+@pytest.mark.parametrize("command", [["fit", "--intervals", "wald"],
+                                     ["compare", "--models", "sarosi"]])
+def test_muscles_whose_names_read_alike_each_get_their_own_plots(tmp_path, capsys, command):
+    """Muscles `A/B`, `A_B` and `A B` all wrote fit_A_B.png (exit 0; fit.json listed it three
+    times), and a muscle name over 255 bytes ended in exit 3 (OSError: File name too long)
+    after the whole fit."""
+    import json
+
+    import pandas as pd
+
+    frame = pd.read_csv(BUNDLED)
+    names = ["A/B", "A_B", "A B", "M" * 300, "Festo10mm_lc40cm"]
+    data = tmp_path / "names.csv"
+    pd.concat(frame.assign(muscle=m) for m in names).to_csv(data, index=False)
+    out = tmp_path / "out"
+    assert main([command[0], str(data), *command[1:], "--out", str(out), "--json"]) == 0
+    doc = json.loads((out / f"{command[0]}.json").read_text())
+    owners = doc["muscle_of_file"]
+    per_muscle = 2 if command[0] == "fit" else 1
+    assert sorted(owners.values()) == sorted(names * per_muscle)
+    assert len(set(doc["plots"])) == len(doc["plots"]) == len(owners) + 1
+    assert set(doc["plots"]) <= {p.name for p in out.iterdir()}
+    assert all(len(name.encode()) < 255 for name in doc["plots"])
+    kind = "fit" if command[0] == "fit" else "models"
+    assert owners[f"{kind}_A_B.png"] == "A_B"
+    assert owners[f"{kind}_Festo10mm_lc40cm.png"] == "Festo10mm_lc40cm"
+
+
+def test_trials_whose_names_read_alike_each_get_their_own_plot(tmp_path, capsys):
+    """`pamid damping` wrote one decay_a_b.png for the trials `a/b` and `a_b`."""
+    import json
+
+    import jax
+
+    import pamid
+
+    osc = pamid.DampedOscillator.from_modal(0.05, 2.0, 0.46, equilibrium_rad=0.0123)
+    frame = pamid.simulate_decays(jax.random.key(1), osc, pamid.DecayProtocol(
+        n_trials=2, deflections_deg=(9.0, 6.0), hold_s=0.3))
+    frame["trial"] = frame["trial"].map(dict(zip(frame["trial"].unique(), ["a/b", "a_b"])))
+    data = tmp_path / "decay.csv"
+    frame.to_csv(data, index=False)
+    out = tmp_path / "out"
+    assert main(["damping", str(data), "--inertia", "0.46", "--out", str(out), "--json"]) == 0
+    doc = json.loads((out / "damping.json").read_text())
+    assert doc["trial_of_file"]["decay_a_b.png"] == "a_b"
+    assert sorted(doc["trial_of_file"].values()) == ["a/b", "a_b"]
+    assert sorted(doc["plots"]) == sorted([*doc["trial_of_file"], "decrement.png"])
+    assert set(doc["plots"]) <= {p.name for p in out.iterdir()}

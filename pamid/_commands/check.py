@@ -27,7 +27,7 @@ import math
 import time
 from pathlib import Path
 
-from .._io import safe_file_name
+from .._io import safe_file_names
 from ._common import MAX_SEED, allow_negative_numbers, count, finite, plot_unit, stage
 
 #: Most posterior draws per trial that ``--posterior-draws`` simulates (one batched call).
@@ -275,15 +275,18 @@ def cmd_check_decays(args) -> int:
     if args.out:
         out = Path(args.out)
         stage(f"writing plots to {final_place(out)}", quiet)
-        payload["plots"] = _plot(curves, rows, out, args.max_plots)
+        owners = _plot(curves, rows, out, args.max_plots)
         if pred is not None:
             from .._report._decays import plot_decay_predictive
 
+            names = safe_file_names(posterior.trials)
             for i, trial in enumerate(posterior.trials[: args.max_plots]):
-                name = f"predictive_{trial}.png"
+                name = f"predictive_{names[i]}.png"
                 plot_decay_predictive(posterior, pred, i, path=out / name,
                                       title=f"Posterior predictive, trial {trial}")
-                payload["plots"].append(name)
+                owners[name] = trial
+        payload["plots"] = list(owners)
+        payload["trial_of_file"] = owners
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
     payload = json_ready(payload)  # JSON has no NaN: null
     text = json.dumps(payload)
@@ -331,7 +334,8 @@ def _text(d: dict) -> str:
     return "\n".join(lines)
 
 
-def _plot(curves, rows, out: Path, max_plots: int) -> list[str]:
+def _plot(curves, rows, out: Path, max_plots: int) -> dict:
+    """``check_<trial>.png`` for the first ``max_plots`` trials; returns {file name: trial}."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -340,8 +344,9 @@ def _plot(curves, rows, out: Path, max_plots: int) -> list[str]:
 
     from .._io import save_figure_atomic
 
-    written = []
-    for row in rows[:max(max_plots, 0)]:
+    written = {}
+    names = safe_file_names(row["trial"] for row in rows)
+    for row, piece in zip(rows[:max(max_plots, 0)], names):
         t, y, w0, st, sy, w1 = curves[row["trial"]]
         keep = st <= w1
         fig, (ax, ax_r) = plt.subplots(2, 1, figsize=(8.0, 5.5), sharex=True,
@@ -364,9 +369,9 @@ def _plot(curves, rows, out: Path, max_plots: int) -> list[str]:
         ax_r.set_xlabel("time [s]")
         ax_r.grid(alpha=0.3)
         fig.tight_layout()
-        name = f"check_{safe_file_name(row['trial'])}.png"
+        name = f"check_{piece}.png"
         save_figure_atomic(fig, out / name, dpi=110)
         plt.close(fig)
-        written.append(name)
+        written[name] = row["trial"]
     return written
 

@@ -99,7 +99,10 @@ def cmd_compare(args) -> int:
     if args.out:
         out = Path(args.out)
         progress(f"writing plots to {final_place(out)}")
-        payload["plots"] = write_comparison_plots(result, bench, out, args.max_plots)
+        owners: dict = {}
+        payload["plots"] = write_comparison_plots(result, bench, out, args.max_plots,
+                                                  owners=owners)
+        payload["muscle_of_file"] = owners
         payload["seconds"] = round(time.perf_counter() - t0, 3)
         write_text_atomic(out / "compare.json", json.dumps(payload, indent=2) + "\n")
     payload["seconds"] = round(time.perf_counter() - t0, 3)

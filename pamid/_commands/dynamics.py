@@ -15,7 +15,7 @@ import time
 import warnings
 from pathlib import Path
 
-from .._io import safe_file_name
+from .._io import safe_file_names
 from ._common import (
     allow_negative_numbers,
     count,
@@ -376,7 +376,10 @@ def cmd_damping(args) -> int:
     if args.out:
         out = Path(args.out)
         stage(f"writing plots to {final_place(out)}", quiet)
-        payload["plots"] = _plot_decays(data, report, out, args.max_plots)
+        owners = _plot_decays(data, report, out, args.max_plots)
+        payload["plots"] = list(owners)
+        payload["trial_of_file"] = {name: trial for name, trial in owners.items()
+                                    if trial is not None}
     payload["seconds"] = round(time.perf_counter() - t_start, 3)
     if args.out:
         write_text_atomic(Path(args.out) / "damping.json", json.dumps(payload, indent=2) + "\n")
@@ -517,7 +520,9 @@ def _interval_notes(d: dict) -> list[tuple[str, str]]:
     return out
 
 
-def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
+def _plot_decays(data, report, out: Path, max_plots: int) -> dict:
+    """``decay_<trial>.png`` for the first ``max_plots`` trials and ``decrement.png``;
+    returns {file name: trial} (None for the figure of every trial)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -527,7 +532,8 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
     from .._io import save_figure_atomic
     from .._sim._oscillator import DampedOscillator, oscillator_response
 
-    written = []
+    written = {}
+    names = safe_file_names(report.trials)
     for i, trial in enumerate(report.trials[:max_plots]):
         t, y = data.arrays(trial)
         e = report.extrema[i]
@@ -560,10 +566,10 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
         ax.legend(fontsize=8, loc="upper right")
         ax.grid(alpha=0.3)
         fig.tight_layout()
-        name = f"decay_{safe_file_name(trial)}.png"
+        name = f"decay_{names[i]}.png"
         save_figure_atomic(fig, out / name, dpi=110)
         plt.close(fig)
-        written.append(name)
+        written[name] = trial
 
     fig, ax = plt.subplots(figsize=(7.0, 4.5))
     for i, trial in enumerate(report.trials):
@@ -582,5 +588,5 @@ def _plot_decays(data, report, out: Path, max_plots: int) -> list[str]:
     fig.tight_layout()
     save_figure_atomic(fig, out / "decrement.png", dpi=110)
     plt.close(fig)
-    written.append("decrement.png")
+    written["decrement.png"] = None
     return written

@@ -114,8 +114,10 @@ def run_mcmc_fit(args, bench, bounds=None) -> tuple[dict, int]:
         n_files = min(getattr(args, "max_plots", 6), result.n_muscles)
         stage(f"writing NetCDF and plots for {n_files} of {result.n_muscles} muscle(s) "
                f"to {final_place(out)}", quiet)
-        payload["netcdf"] = save_netcdf(result, out, muscles=range(n_files))
-        payload["plots"] = write_mcmc_plots(result, bench, out, n_files)
+        owners: dict = {}
+        payload["netcdf"] = save_netcdf(result, out, muscles=range(n_files), owners=owners)
+        payload["plots"] = write_mcmc_plots(result, bench, out, n_files, owners=owners)
+        payload["muscle_of_file"] = owners
     payload["seconds"] = round(time.perf_counter() - t0, 3)
     if getattr(args, "out", None):
         write_text_atomic(Path(args.out) / "fit.json", json.dumps(payload, indent=2) + "\n")

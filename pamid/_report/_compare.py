@@ -50,10 +50,12 @@ def comparison_table(result) -> str:
     return "\n".join(lines)
 
 
-def write_comparison_plots(result, bench, folder, max_plots: int = 6) -> list[str]:
+def write_comparison_plots(result, bench, folder, max_plots: int = 6, *,
+                           owners: dict | None = None) -> list[str]:
     """What ``pamid compare --out`` draws: ``models_<muscle>.png`` (every model against the
     data) for the first ``max_plots`` muscles of ``bench`` (the file compared), and
-    ``cv_rmse.png``; each written atomically into ``folder``. Returns the names written."""
+    ``cv_rmse.png``; each written atomically into ``folder``. Returns the names written;
+    ``owners``, a dict, gets {file name: muscle} for the files of one muscle."""
     from ._fit import bench_muscle
 
     folder = Path(folder)
@@ -62,6 +64,8 @@ def write_comparison_plots(result, bench, folder, max_plots: int = 6) -> list[st
         _, name, _ = bench_muscle(bench, i)
         plot_comparison(result, bench, i, folder / f"models_{name}.png")
         written.append(f"models_{name}.png")
+        if owners is not None:
+            owners[written[-1]] = bench.muscles[i]
     plot_cv_rmse(result, folder / "cv_rmse.png",
                  title=f"Cross-validated RMSE — {Path(bench.path).name}")
     written.append("cv_rmse.png")

@@ -101,13 +101,14 @@ _TEXT = {
 
 def bench_muscle(bench, i: int) -> tuple:
     """Muscle ``i`` of a bench file as the figures take it: its rows (a DataFrame), its
-    name in file names ("muscle" in a file without a muscle column) and its label in titles
-    (the file's name there)."""
-    from .._io import safe_file_name
+    name in file names, unique among the file's muscles (:func:`pamid._io.safe_file_names`;
+    "muscle" in a file without a muscle column) and its label in titles (the file's name
+    there)."""
+    from .._io import safe_file_names
 
     muscle = bench.muscles[i]
     frame = bench.for_muscle(muscle)
-    name = safe_file_name(muscle) if bench.has_muscle_column else "muscle"
+    name = safe_file_names(bench.muscles)[i] if bench.has_muscle_column else "muscle"
     label = muscle if bench.has_muscle_column else Path(bench.path).name
     return frame, name, label
 
@@ -155,10 +156,13 @@ def plot_rmse_histogram(result, path=None, *, title: str | None = None):
         result.rmse_N, path, title or f"Fit RMSE across {result.n_muscles} muscles")
 
 
-def write_fit_plots(result, bench, folder, max_plots: int = 6) -> list[str]:
+def write_fit_plots(result, bench, folder, max_plots: int = 6, *,
+                    owners: dict | None = None) -> list[str]:
     """What ``pamid fit --out`` draws: ``fit_<muscle>.png`` and ``residuals_<muscle>.png``
-    for the first ``max_plots`` muscles, and ``rmse_histogram.png`` when there are several;
-    each written atomically into ``folder``. Returns the file names written."""
+    for the first ``max_plots`` muscles (names: :func:`bench_muscle`), and
+    ``rmse_histogram.png`` when there are several; each written atomically into
+    ``folder``. Returns the file names written; ``owners``, a dict, gets {file name: muscle}
+    for the files of one muscle (``muscle_of_file`` in fit.json)."""
     from . import _plot
 
     folder = Path(folder)
@@ -172,6 +176,8 @@ def write_fit_plots(result, bench, folder, max_plots: int = 6) -> list[str]:
                              folder / f"residuals_{name}.png", f"Residuals — {title}",
                              curves=curves)
         written += [f"fit_{name}.png", f"residuals_{name}.png"]
+        if owners is not None:
+            owners.update(dict.fromkeys(written[-2:], bench.muscles[i]))
     if result.n_muscles > 1:
         plot_rmse_histogram(result, folder / "rmse_histogram.png")
         written.append("rmse_histogram.png")

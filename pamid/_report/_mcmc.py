@@ -19,7 +19,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from .._io import safe_file_name, save_figure_atomic, write_atomic
+from .._io import safe_file_names, save_figure_atomic, write_atomic
 from .._sampling._arviz import (
     encode_attrs,
     input_names,
@@ -41,26 +41,30 @@ def netcdf_engine() -> str | None:
 
 
 def muscle_file_stem(result, i: int) -> str:
-    """Muscle ``i``'s name in file names: its name made safe, or "muscle" ("muscle<i>"
-    among several unnamed ones)."""
+    """Muscle ``i``'s name in file names: its name made safe, unique among the result's
+    muscles (:func:`pamid._io.safe_file_names`), or "muscle" ("muscle<i>" among several
+    unnamed ones)."""
     m = result.muscles[i]
     if m is None:
         return "muscle" if result.n_muscles == 1 else f"muscle{i}"
-    return safe_file_name(m)
+    return safe_file_names(result.muscles)[i]
 
 
-def save_netcdf(result, directory, muscles=None) -> list[str]:
+def save_netcdf(result, directory, muscles=None, *, owners: dict | None = None) -> list[str]:
     """Write each muscle's DataTree (posterior, sample_stats, log_likelihood,
     posterior_predictive, observed_data, constant_data; units in the attributes) to
     ``directory``/``mcmc_<muscle>.nc``, atomically; without a NetCDF-4 engine a folder
     ``mcmc_<muscle>.nc3`` of NetCDF-3 files instead, with a warning. ``muscles``: indices
-    (default all). Returns the names written; :func:`pamid.load_inference_data` reads them."""
+    (default all). Returns the names written; :func:`pamid.load_inference_data` reads them.
+    ``owners``, a dict, gets {name written: muscle}."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     written = []
     for i in range(result.n_muscles) if muscles is None else muscles:
         dt = to_inference_data(result, i)
         written.append(write_datatree(dt, directory / f"mcmc_{muscle_file_stem(result, i)}.nc"))
+        if owners is not None:
+            owners[written[-1]] = result.muscles[i]
     return written
 
 
@@ -182,11 +186,13 @@ def plot_predictive(result, i: int = 0, path=None, title: str | None = None):
     return _finish(fig, path, dpi=110)
 
 
-def write_mcmc_plots(result, bench, folder, n_muscles: int) -> list[str]:
+def write_mcmc_plots(result, bench, folder, n_muscles: int, *,
+                     owners: dict | None = None) -> list[str]:
     """What ``pamid fit --method mcmc --out`` draws for its first ``n_muscles`` muscles:
     ``mcmc_trace_<muscle>.png``, ``mcmc_pair_<muscle>.png`` and
     ``mcmc_predictive_<muscle>.png``, each written atomically into ``folder``; ``bench``
-    (the file sampled) names an unnamed muscle in the titles. Returns the names written."""
+    (the file sampled) names an unnamed muscle in the titles. Returns the names written;
+    ``owners``, a dict, gets {file name: muscle}."""
     folder = Path(folder)
     written = []
     for i in range(n_muscles):
@@ -201,4 +207,6 @@ def write_mcmc_plots(result, bench, folder, n_muscles: int) -> list[str]:
             name = f"mcmc_{kind}_{stem}.png"
             plot(result, i, folder / name, title)
             written.append(name)
+            if owners is not None:
+                owners[name] = result.muscles[i]
     return written
