@@ -116,7 +116,7 @@ def _warm_fit(startup, rows_per_muscle, intervals) -> None:
             from ._fit._api import prepare_fit
 
             prepare_fit(prepared[0], rows_per_muscle, intervals=intervals)
-    except Exception:  # noqa: BLE001 - a warm-up only
+    except (Exception, SystemExit):  # noqa: BLE001 - a warm-up only (a model file may exit)
         pass
 
 
@@ -448,6 +448,11 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print("pamid: interrupted", file=sys.stderr)
         return failure.EXIT_INTERRUPTED
+    except SystemExit as exc:  # user code (argparse's exits come before): its file, exit 2
+        if failure.debugging():
+            raise
+        print(f"pamid: error: {failure.describe_exit(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except Exception as exc:  # out of memory, or a defect: one line, never a traceback
         if failure.debugging():
             raise

@@ -415,3 +415,49 @@ def test_cli_max_rows_must_be_positive(tmp_path, capsys):
     path = _sweeps(tmp_path, 10, 1)
     assert main(["diagnose", str(path), "--max-rows", "0"]) == 2
     assert "max_rows (--max-rows) must be at least 1, not 0" in _one_line(capsys.readouterr().err)
+
+
+# -- a model file that ends the program ------------------------------------------------------
+
+_MODEL = '''
+import sys
+import pamid
+
+CALLS = []
+
+
+class Quadratic(pamid.ForceModel):
+    c0: float = 0.0
+    c1: float = 1.0
+    units = {"c0": "N", "c1": "N/kPa"}
+    inputs = ("pressure_kPa", "contraction_pct")
+
+    def __call__(self, pressure_kPa, contraction_pct):
+        CALLS.append(1)
+        if len(CALLS) > EXIT_AFTER:
+            sys.exit(0)
+        return self.c0 + self.c1 * pressure_kPa
+'''
+
+
+@pytest.mark.parametrize(("tail", "says"), [
+    ("EXIT_AFTER = 0\nsys.exit(0)", "the model file failed to run: it ended the program"),
+    ("EXIT_AFTER = 0", "Quadratic.__call__ failed on test inputs (SystemExit: 0)"),
+    ("EXIT_AFTER = 1", "user code ended the program (SystemExit: 0) while pamid ran it"),
+])
+def test_a_model_file_that_exits_is_a_failure_of_that_file(bench_csv, tmp_path, capsys, tail,
+                                                           says):
+    """A --model file that called sys.exit(0) at import (or in its model, at the first call
+    or a later one) ended pamid with exit 0 and nothing on stdout or stderr, even with
+    --json."""
+    path = tmp_path / "exits.py"
+    text = _MODEL + tail + "\n"
+    path.write_text(text)
+    at = [k + 1 for k, line in enumerate(text.splitlines()) if "sys.exit(0)" in line]
+    code = main(["fit", str(bench_csv), "--model", f"{path}:Quadratic", "--json",
+                 "--intervals", "wald"])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    line = _one_line(captured.err)
+    lineno = at[-1] if "sys.exit" in tail else at[0]
+    assert line.startswith(f"pamid: error: {path}, line {lineno}: ") and says in line, line

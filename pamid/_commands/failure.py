@@ -15,6 +15,7 @@ import os
 import signal
 import sys
 import threading
+from pathlib import Path
 
 EXIT_INTERNAL = 3
 EXIT_INTERRUPTED = 130
@@ -89,6 +90,23 @@ def describe(exc: BaseException, command: str | None) -> str:
         return f"out of memory ({what}); {advice}"
     return (f"internal error ({what}); rerun with PAMID_DEBUG=1 for the traceback and "
             "report it")
+
+
+def describe_exit(exc: SystemExit) -> str:
+    """One line for a ``SystemExit`` raised inside a command: only code of the user's (a
+    ``--model`` file's class, called while the model is fitted) ends the program there, so
+    it names the user's file and line where the traceback shows it."""
+    import sysconfig
+    import traceback
+
+    library = [str(Path(__file__).resolve().parents[1]), *{
+        sysconfig.get_path(k) for k in ("stdlib", "platstdlib", "purelib", "platlib")}]
+    frames = [f for f in traceback.extract_tb(exc.__traceback__)
+              if not f.filename.startswith("<")
+              and not any(str(Path(f.filename).resolve()).startswith(lib) for lib in library)]
+    where = f"{frames[-1].filename}, line {frames[-1].lineno}: " if frames else ""
+    return (f"{where}user code ended the program (SystemExit: {exc.code!r}) while pamid ran "
+            "it; a model must return forces, not exit")
 
 
 def debugging() -> bool:

@@ -411,13 +411,14 @@ def load_model_class(reference: str) -> type:
     except SyntaxError as exc:
         raise ModelDefinitionError(
             f"{path}, line {exc.lineno}: syntax error in the model file: {exc.msg}") from None
-    except Exception as exc:  # the user's code: report where it failed, in one line
+    except (Exception, SystemExit) as exc:  # the user's code: where it failed, in one line
         frames = [f for f in traceback.extract_tb(exc.__traceback__)
                   if os.path.abspath(f.filename) == key[0]]
         where = f", line {frames[-1].lineno}" if frames else ""
+        what = (f"it ended the program (SystemExit: {exc.code!r}); a model file defines "
+                "classes" if isinstance(exc, SystemExit) else f"{type(exc).__name__}: {exc}")
         raise ModelDefinitionError(
-            f"{path}{where}: the model file failed to run: {type(exc).__name__}: {exc}"
-        ) from None
+            f"{path}{where}: the model file failed to run: {what}") from None
     cls = getattr(module, class_name, None)
     if cls is None:
         found = sorted(k for k, v in vars(module).items()
@@ -448,7 +449,7 @@ def check_callable(spec: ModelSpec, where: str) -> None:
     try:
         out = spec.predict(theta, probe)
         shape = np.shape(out)
-    except Exception as exc:  # the user's code: one line with the place it failed
+    except (Exception, SystemExit) as exc:  # the user's code: one line, the place it failed
         frames = [f for f in traceback.extract_tb(exc.__traceback__)
                   if path is not None and os.path.abspath(f.filename) == path]
         at = f"{where.rpartition(':')[0]}, line {frames[-1].lineno}" if frames else where
