@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import jax
+import matplotlib.colors
 import numpy as np
 import pandas as pd
 import pytest
@@ -250,6 +251,78 @@ def test_a_file_that_mixes_sweeps_and_isometric_tests_gets_both(tmp_path_factory
         "contraction κ [%]", "pressure p [kPa]"]
     fig = plot_residuals(frame, SAROSI, theta31, tmp_path / "res.png", "M1")
     assert [ax.get_xlabel() for ax in fig.axes][:2] == ["contraction κ [%]", "pressure p [kPa]"]
+
+
+# --------------------------------------------------------------------------------------
+# Maps logged by hand: the view chosen by the data
+# --------------------------------------------------------------------------------------
+
+
+def _hand_logged_map(theta31, seed: int = 3, scattered: bool = False) -> pd.DataFrame:
+    """60 points logged by hand on a 300 mm muscle: three lengths held within ±2 mm while
+    the pressure goes up and down (15 kPa of scatter), forces from Table 3-1 with 8 N of
+    noise; ``scattered``: length and pressure anywhere (neither held)."""
+    rng = np.random.default_rng(seed)
+    if scattered:
+        length = rng.uniform(250.0, 290.0, 60)
+        p = rng.uniform(100.0, 600.0, 60)
+    else:
+        length = np.repeat([285.0, 270.0, 255.0], 20) + rng.uniform(-2.0, 2.0, 60)
+        p = np.tile(np.r_[np.linspace(100, 600, 10), np.linspace(600, 100, 10)], 3)
+        p = p + rng.normal(0.0, 15.0, 60)
+    kappa = 100.0 * (300.0 - length) / 300.0
+    force = np.asarray(pamid.sarosi.sarosi_force(pamid.Sarosi(*theta31), p / 100.0, kappa))
+    return pd.DataFrame({"pressure_kPa": np.round(p, 1), "force_N": np.round(
+        force + rng.normal(0.0, 8.0, 60), 1), "length_mm": np.round(length, 1), "l0_mm": 300})
+
+
+def _line_colour(line) -> tuple:
+    return tuple(np.round(matplotlib.colors.to_rgba(line.get_color()), 6))
+
+
+def test_hand_logged_isometric_map_gets_force_against_pressure(tmp_path_factory, theta31,
+                                                               tmp_path):
+    """Was: force against contraction at two "held" pressures, most points on no line."""
+    frame = _load(tmp_path_factory, _hand_logged_map(theta31), "hand.csv")
+    fig = plot_fit(frame, SAROSI, theta31, tmp_path / "fit.png", "hand-logged map")
+    _check_bounded(fig)
+    (ax,) = _main_axes(fig)
+    (axr,) = _residual_axes_below(fig, ax)
+    assert axr.get_xlabel() == "pressure p [kPa]"
+    assert "held contractions" in ax.get_title()
+    # one model line per held length, at that length's median contraction
+    lines = _model_lines(ax)
+    assert len(lines) == 3
+    model = pamid.Sarosi(*theta31)
+    levels = frame.groupby(np.round(frame["length_mm"] / 15))["contraction_pct"].median()
+    for line, kappa in zip(lines, sorted(levels), strict=True):
+        p_kpa, force = line.get_xdata(), line.get_ydata()
+        np.testing.assert_allclose(force, pamid.sarosi.sarosi_force(model, p_kpa / 100.0,
+                                                                    kappa), atol=1e-6)
+    # every measured point lies on the span of the model line of its own level (colour)
+    spans = {_line_colour(line): (line.get_xdata().min(), line.get_xdata().max())
+             for line in lines}
+    points = [line for line in ax.get_lines() if line.get_marker() == "o"
+              and line.get_linestyle() in ("None", "none", "")]
+    assert sum(len(line.get_xdata()) for line in points) == 60
+    for line in points:
+        lo, hi = spans[_line_colour(line)]
+        assert np.all((line.get_xdata() >= lo) & (line.get_xdata() <= hi))
+    # both directions, from the order of the pressure within each length
+    assert _fills(ax) == {"filled", "open"}
+    # and measured against predicted, every point
+    (axp,) = [a for a in fig.axes if a.get_ylabel() == "measured force F [N]"]
+    assert axp.get_xlabel() == "model force F̂ [N]" and _points(axp) == 60
+
+
+def test_scattered_map_gets_force_against_pressure_per_contraction_bin(tmp_path_factory,
+                                                                      theta31, tmp_path):
+    frame = _load(tmp_path_factory, _hand_logged_map(theta31, scattered=True), "scatter.csv")
+    fig = plot_fit(frame, SAROSI, theta31, tmp_path / "fit.png", "scattered map")
+    (ax,) = _main_axes(fig)
+    assert "per contraction bin" in ax.get_title()
+    assert _residual_axes_below(fig, ax)[0].get_xlabel() == "pressure p [kPa]"
+    assert len(_model_lines(ax)) == 4
 
 
 # --------------------------------------------------------------------------------------

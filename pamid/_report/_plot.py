@@ -9,6 +9,12 @@ Every bench file gives figures a person can read, whatever its size or noise:
 * the data are drawn per curve, as :func:`pamid._data._curves.find_curves` defines them:
   force against contraction at each held pressure for sweeps, force against pressure at
   each held contraction for isometric tests; a file that holds both gets both panels;
+* where the curves' levels do not hold their input (a map logged by hand: the length held
+  within a few mm while the pressure goes up and down, no time column), the view is chosen
+  by the data (:func:`choose_view`): force against the other input at the levels one input
+  keeps in the data, else force against pressure per contraction bin, so that every point
+  has its model line;
+* beside them, measured against predicted force for every file;
 * samples taken while the muscle is driven to contract (direction +1: contraction rising
   in a sweep, pressure rising at a held length) are filled markers, the others open ones,
   explained once in the legend;
@@ -24,6 +30,7 @@ from __future__ import annotations
 import functools
 import math
 import textwrap
+from dataclasses import dataclass
 from pathlib import Path
 
 import jax
@@ -53,6 +60,14 @@ SPARSE_POINTS = 2_000
 GRID_POINTS = 120
 #: Held levels closer than this fraction of their range are drawn as one level.
 LEVEL_MERGE_FRACTION = 0.02
+#: A view holds an input when each of its levels' samples (5th–95th percentile) span at most
+#: this fraction of the input's range in the panel.
+HELD_SPREAD = 0.2
+#: Levels found in the data: sorted values part where they leave a gap wider than this
+#: fraction of the input's range.
+LEVEL_GAP = 0.04
+#: Contraction bins of a map where neither input is held (the samples scattered).
+CONTRACTION_BINS = 4
 
 _LABELS = {
     "contraction_pct": "contraction κ [%]",
@@ -316,15 +331,136 @@ _KINDS = {
 }
 
 
-def _fit_panel(fig, ax, axr, r: _Rows, rows: np.ndarray, moving: int, theta) -> None:
-    """One kind of curve: data coloured by held level, model at the (binned) levels, the
-    residual below."""
-    spec, cv = r.spec, r.curves
+@dataclass(frozen=True)
+class View:
+    """How one panel draws its rows: force against the ``moving`` input (0: the
+    contraction, lines at held pressures; 1: the pressure, lines at held contractions),
+    grouped by ``level`` (each row's held level), as ``kind`` found it: ``"curves"``, the
+    curves of :func:`pamid._data._curves.find_curves` (the protocol); ``"levels"``, levels
+    the held input keeps in the data; ``"bins"``, bins of the contraction where neither
+    input is held. ``direction``: +1 where the moving input is driven up (filled markers)."""
+
+    moving: int
+    level: np.ndarray
+    kind: str
+    direction: np.ndarray
+    title: str
+
+
+def _spread(held: np.ndarray, group: np.ndarray, n: int) -> float:
+    """The widest level's spread of a held input (5th–95th percentile of its samples) as a
+    fraction of the input's range; 0 for an input with one value."""
+    span = float(np.ptp(held)) if len(held) else 0.0
+    if span == 0.0:
+        return 0.0
+    widest = 0.0
+    for g in range(n):
+        values = held[group == g]
+        if len(values) > 1:
+            lo, hi = np.percentile(values, [5.0, 95.0])
+            widest = max(widest, float(hi - lo))
+    return widest / span
+
+
+def _gap_levels(values: np.ndarray) -> tuple[np.ndarray, int]:
+    """Levels of an input found in the data: its sorted values part wherever they leave a gap
+    wider than :data:`LEVEL_GAP` of their range. Returns each row's level and their number."""
+    u = np.unique(values)
+    span = float(u[-1] - u[0]) if len(u) else 0.0
+    if span == 0.0:
+        return np.zeros(len(values), dtype=np.int64), 1
+    tops = u[:-1][np.diff(u) > LEVEL_GAP * span]
+    return np.searchsorted(tops, values, side="left"), len(tops) + 1
+
+
+def _held_in_data(held: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, int] | None:
+    """Levels at which ``held`` is held while ``other`` moves, found in the data: levels
+    parted by gaps (:func:`_gap_levels`) no narrower than the widest level (so that samples
+    scattered evenly, whose gaps are random, make no levels), each spanning at most
+    :data:`HELD_SPREAD` of the range, three samples or more per level on average, and
+    ``other`` covering a third of its range or more within a typical level. None where the
+    data hold no such levels."""
+    group, n = _gap_levels(held)
+    if n < 2 or n * 3 > len(held):
+        return None
+    spread = _spread(held, group, n)
+    lows = np.array([held[group == g].min() for g in range(n)])
+    highs = np.array([held[group == g].max() for g in range(n)])
+    if spread > HELD_SPREAD or np.min(lows[1:] - highs[:-1]) < spread * np.ptp(held):
+        return None
+    span = float(np.ptp(other))
+    moves = [float(np.ptp(other[group == g])) for g in range(n) if np.any(group == g)]
+    if span == 0.0 or np.median(moves) < span / 3:
+        return None
+    return group, n
+
+
+def _driven_up(x: np.ndarray, group: np.ndarray, recorded: np.ndarray,
+               recorded_direction: np.ndarray) -> np.ndarray:
+    """+1 where the moving input rises from the previous sample of its level to the next
+    (file order), −1 where it falls; the recorded direction wherever the file has one."""
+    direction = np.ones(len(x))
+    for g in np.unique(group):
+        at = np.flatnonzero(group == g)
+        if len(at) > 1:
+            direction[at] = np.where(np.gradient(x[at]) < 0.0, -1.0, 1.0)
+    return np.where(recorded, recorded_direction, direction)
+
+
+def choose_view(r: _Rows, rows: np.ndarray, moving: int) -> View:
+    """The view of one kind of curve's rows, chosen by the data: the curves' own (force
+    against the moving input at each held level) where their levels hold the held input
+    (:data:`HELD_SPREAD`); else levels that one input keeps in the data while the other moves
+    (a hand-logged isometric map: length held within a few mm while the pressure goes up and
+    down), the fewer levels first; else force against pressure per contraction bin."""
+    cv = r.curves
+    p, c = r.p[rows], r.c[rows]
+    level = cv.level[rows]
+    group, n = _level_groups(level)
+    held = p if moving == 0 else c
+    if _spread(held, group, n) <= HELD_SPREAD:
+        return View(moving, level, "curves", cv.direction[rows], _KINDS[moving]["title"])
+    found = []
+    for view_moving, held, other in ((1, c, p), (0, p, c)):
+        levels = _held_in_data(held, other)
+        if levels is not None:
+            found.append((levels[1], view_moving, levels[0], held))
+    recorded = cv.direction_recorded[rows]
+    if found:
+        _, view_moving, group, held = min(found, key=lambda f: f[0])
+        medians = np.array([np.median(held[group == g]) for g in range(group.max() + 1)])
+        x = c if view_moving == 0 else p
+        half = float(np.max(np.abs(held - medians[group])))
+        what = ("force against contraction at held pressures" if view_moving == 0 else
+                "force against pressure at held contractions")
+        unit = "kPa" if view_moving == 0 else _UNITS[r.col]
+        title = f"{what} (levels in the data, each held within ±{half:.2g} {unit})"
+        return View(view_moving, medians[group], "levels",
+                    _driven_up(x, group, recorded, cv.direction[rows]), title)
+    edges = np.unique(np.quantile(c, np.linspace(0.0, 1.0, CONTRACTION_BINS + 1))[1:-1])
+    group = np.searchsorted(edges, c, side="right")
+    medians = np.array([np.median(c[group == g]) if np.any(group == g) else np.nan
+                        for g in range(len(edges) + 1)])
+    title = ("force against pressure per contraction bin (neither input held: lines at "
+             "each bin's median contraction)")
+    return View(1, medians[group], "bins", _driven_up(p, group, recorded, cv.direction[rows]),
+                title)
+
+
+def _fit_panel(fig, ax, axr, r: _Rows, rows: np.ndarray, moving: int, theta):
+    """One kind of curve, drawn as :func:`choose_view` decides: data coloured by held level,
+    model at the (binned) levels, the residual below. Returns the rows drawn, their colour
+    codes and the palette (for the measured-against-predicted panel)."""
+    spec = r.spec
+    view = choose_view(r, rows, moving)
+    moving = view.moving
     x_all, held_all = (r.c, r.p) if moving == 0 else (r.p, r.c)
     x_name, held_name = ((r.col, "pressure_kPa") if moving == 0 else ("pressure_kPa", r.col))
     held_label, held_unit = _LABELS[held_name], _UNITS[held_name]
-    level = cv.level[rows]
-    direction = cv.direction[rows]
+    if view.kind == "bins":
+        held_label = f"{held_label}, bin median"
+    level = view.level
+    direction = view.direction
     group, n_groups = _level_groups(level)
     rep = np.array([np.median(level[group == g]) for g in range(n_groups)])
     listed = n_groups <= MAX_LISTED
@@ -343,7 +479,7 @@ def _fit_panel(fig, ax, axr, r: _Rows, rows: np.ndarray, moving: int, theta) -> 
     p_grid, c_grid = (held_grid, x_grid) if moving == 0 else (x_grid, held_grid)
     f_grid = _model_curve(spec, theta, p_grid, c_grid).reshape(n_groups, GRID_POINTS)
 
-    keep, k = every_kth(cv.curve[rows])
+    keep, k = every_kth(r.curves.curve[rows])
     sub = rows[keep]
     # a few samples are drawn over the model lines, a dense cloud under them
     _points(ax, x_all[sub], r.f[sub], group[keep], palette, direction[keep],
@@ -374,18 +510,43 @@ def _fit_panel(fig, ax, axr, r: _Rows, rows: np.ndarray, moving: int, theta) -> 
                        fontsize=8)
         cbar.ax.tick_params(labelsize=8)
     note = shown(k, len(rows))
-    ax.set_title(_KINDS[moving]["title"] + (f"\n{note}" if note else ""), fontsize=9)
+    ax.set_title(wrap(view.title, 70) + (f"\n{note}" if note else ""), fontsize=9)
     ax.set_ylabel("force F [N]")
     _grid(ax)
     axr.axhline(0.0, color="k", lw=0.8)
     axr.set_xlabel(_LABELS[x_name])
     axr.set_ylabel("residual [N]\n(data − model)")
     _grid(axr)
+    return sub, group[keep], palette, direction[keep]
+
+
+def _measured_panel(ax, r: _Rows, drawn) -> None:
+    """Measured force against the model's force on the same rows (every input the model
+    takes), coloured as the panels beside it, with the line of perfect agreement."""
+    for sub, code, palette, direction in drawn:
+        _points(ax, r.model[sub], r.f[sub], code, palette, direction,
+                over_lines=len(sub) <= SPARSE_POINTS)
+    lo = float(min(r.model.min(), r.f.min()))
+    hi = float(max(r.model.max(), r.f.max()))
+    pad = 0.04 * (hi - lo or 1.0)
+    ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], "--", color="0.25", lw=1.0, zorder=5)
+    ax.set_xlim(lo - pad, hi + pad)
+    ax.set_ylim(lo - pad, hi + pad)
+    ax.set_aspect("equal", adjustable="box")
+    rmse = float(np.sqrt(np.mean(r.resid**2)))
+    ax.text(0.03, 0.97, f"n = {r.n:,}\nRMSE = {rmse:.3g} N\n– – measured = model",
+            transform=ax.transAxes, va="top", fontsize=8,
+            bbox={"boxstyle": "round", "fc": "white", "ec": "0.7"})
+    ax.set_title("measured against predicted", fontsize=9)
+    ax.set_xlabel("model force F̂ [N]")
+    ax.set_ylabel("measured force F [N]")
+    _grid(ax)
 
 
 def plot_fit(frame, spec, theta, path, title: str, *, curves=None) -> Figure:
     """Force against the moving input per held level, data and fitted model, residuals
-    below; one column of panels per kind of curve in the file (sweeps, isometric tests).
+    below; one column of panels per kind of curve in the file (sweeps, isometric tests),
+    each drawn as :func:`choose_view` decides; last, measured against predicted force.
 
     ``frame`` is one muscle's rows of a bench table; ``spec`` the fitted model
     (``pamid._fit._spec.ModelSpec``) and ``theta`` its constants; ``curves`` the rows'
@@ -396,15 +557,18 @@ def plot_fit(frame, spec, theta, path, title: str, *, curves=None) -> Figure:
     """
     r = _Rows(frame, spec, theta, curves)
     kinds = [m for m in (0, 1) if np.any(r.curves.moving == m)]
-    fig = Figure(figsize=(8.2 * len(kinds), 7.2), layout="constrained")
-    gs = fig.add_gridspec(2, len(kinds), height_ratios=[3, 1.3])
+    fig = Figure(figsize=(8.2 * len(kinds) + 4.6, 7.2), layout="constrained")
+    gs = fig.add_gridspec(2, len(kinds) + 1, height_ratios=[3, 1.3],
+                          width_ratios=[8.2] * len(kinds) + [4.6])
+    drawn = []
     for j, moving in enumerate(kinds):
         ax = fig.add_subplot(gs[0, j])
         axr = fig.add_subplot(gs[1, j], sharex=ax)
         ax.tick_params(labelbottom=False)
         rows = np.flatnonzero(r.curves.moving == moving)
-        _fit_panel(fig, ax, axr, r, rows, moving, theta)
-    fig.suptitle(wrap(title, 70 * len(kinds)), fontsize=11)
+        drawn.append(_fit_panel(fig, ax, axr, r, rows, moving, theta))
+    _measured_panel(fig.add_subplot(gs[:, -1]), r, drawn)
+    fig.suptitle(wrap(title, 70 * len(kinds) + 40), fontsize=11)
     _save(fig, path)
     return fig
 
@@ -422,22 +586,23 @@ def _direction_names(moving: np.ndarray) -> tuple[str, str]:
     return ("contracting / inflating (filled)", "extending / deflating (open)")
 
 
-def _residual_colors(r: _Rows):
+def _residual_colors(r: _Rows, direction: np.ndarray, moving: np.ndarray):
     """Colour code of each row, its palette, the legend handles and an optional colour
     bar: the direction for one trial, the trial for a few, the repeat when many trials
-    repeat a few settings, else the trial's order (binned) with a colour bar."""
+    repeat a few settings, else the trial's order (binned) with a colour bar.
+    ``direction`` and ``moving``: each row's, as the fit figure draws them."""
     cv = r.curves
     trials = np.unique(cv.trial)
     repeats = np.unique(cv.repeat)
     tab = matplotlib.colormaps["tab10"]
     if len(trials) <= 1:
-        code = (cv.direction != 1.0).astype(np.int64)
-        names = _direction_names(cv.moving)
+        code = (direction != 1.0).astype(np.int64)
+        names = _direction_names(moving)
         handles = [Line2D([], [], ls="none", marker="o", ms=5, color=tab(3 * i),
                           mfc=tab(0) if i == 0 else "none", label=names[i])
                    for i in (0, 1) if np.any(code == i)]
         return code, [tab(0), tab(3)], handles, None, None
-    handles = _direction_handles(cv.direction, _direction_names(cv.moving))
+    handles = _direction_handles(direction, _direction_names(moving))
     if len(trials) <= MAX_LISTED:
         for i, t in enumerate(trials):
             first = np.flatnonzero(cv.trial == t)[0]
@@ -468,13 +633,17 @@ def plot_residuals(frame, spec, theta, path, title: str, *, curves=None) -> Figu
     """
     r = _Rows(frame, spec, theta, curves)
     cv = r.curves
-    code, palette, handles, norm, cbar_label = _residual_colors(r)
     keep, k = every_kth(cv.curve)
+    direction, moving_of = cv.direction, cv.moving
     if np.all(cv.moving == cv.moving[0]):
-        moving = int(cv.moving[0])
+        view = choose_view(r, np.arange(r.n), int(cv.moving[0]))  # as the fit figure draws
+        moving = view.moving
+        direction, moving_of = view.direction, np.full(r.n, moving)
         x_name, held_name = ((r.col, "pressure_kPa") if moving == 0 else ("pressure_kPa", r.col))
+        of = {"curves": "level of the curve", "levels": "level in the data",
+              "bins": "bin median"}[view.kind]
         first = [(r.c if moving == 0 else r.p, _LABELS[x_name] + " (moving)"),
-                 (cv.level, "held " + _LABELS[held_name] + " (level of the curve)")]
+                 (view.level, f"held {_LABELS[held_name]} ({of})")]
     else:
         first = [(r.c, _LABELS[r.col]), (r.p, _LABELS["pressure_kPa"])]
     if np.all(np.isfinite(cv.elapsed_s)):
@@ -484,11 +653,12 @@ def plot_residuals(frame, spec, theta, path, title: str, *, curves=None) -> Figu
     else:
         when = (np.arange(r.n, dtype=np.float64), "sample, in file order")
     panels = [*first, when, (r.model, "fitted force [N]")]
+    code, palette, handles, norm, cbar_label = _residual_colors(r, direction, moving_of)
 
     fig = Figure(figsize=(10, 7.2), layout="constrained")
     axes = fig.subplots(2, 2, sharey=True)
     for ax, (xv, label) in zip(axes.ravel(), panels):
-        _points(ax, xv[keep], r.resid[keep], code[keep], palette, cv.direction[keep])
+        _points(ax, xv[keep], r.resid[keep], code[keep], palette, direction[keep])
         ax.axhline(0.0, color="k", lw=0.8)
         ax.set_xlabel(label)
         _grid(ax)
