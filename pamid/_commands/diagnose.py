@@ -25,18 +25,22 @@ def candidate_effects_text() -> str:
     return f"bench files: {', '.join(bench)}; decay files: {', '.join(decay)}"
 
 
+def _description() -> str:
+    return ("Fit the baseline model, test its residual for whiteness and for dependence on "
+            "every covariate, refit with each candidate effect "
+            f"({candidate_effects_text()}), select by BIC and cross-validated error, and "
+            "report the error before and after. A numeric column that only counts rows "
+            "(whole numbers that rise from each row to the next within every trial of every "
+            "muscle: a sample index, a row number of a source file, a logger's tick count) "
+            "is not offered as a covariate, whatever its name; the report says which columns "
+            "were left out and why.")
+
+
 def register(subparsers) -> None:
     diag = subparsers.add_parser(
         "diagnose",
         help="trace the residual of a fit to effects the model lacks, add them, report the gain",
-        description="Fit the baseline model, test its residual for whiteness and for dependence "
-                    "on every covariate, refit with each candidate effect "
-                    f"({candidate_effects_text()}), select by BIC and cross-validated error, "
-                    "and report the error before and after. A numeric column that only "
-                    "counts rows (whole numbers that rise from each row to the next within "
-                    "every trial of every muscle: a sample index, a row number of a source "
-                    "file, a logger's tick count) is not offered as a covariate, whatever its "
-                    "name; the report says which columns were left out and why.",
+        description=_description,  # a function: the parser calls it for --help only
     )
     diag.add_argument("data", help="bench file (CSV, Parquet or .xlsx) or decay file (time_s, "
                                    "angle_rad|angle_deg, optional trial)")

@@ -92,8 +92,7 @@ def degrees_in_model(spec: ModelSpec, theta, x, frame: pd.DataFrame, covariates,
     model affine in the pressure (Sárosi eq. 2.1, Cullinan eq. 3) contains degree 1 of the
     pressure, Cullinan eq. 3 degrees 1 and 2 of the contraction y; such a term added as an
     effect would be unidentifiable. Found from the model, for any ForceModel."""
-    jac = np.asarray(jax.jacfwd(lambda th: spec.predict(th, tuple(jnp.asarray(v) for v in x)))(
-        jnp.asarray(theta)))
+    jac = np.asarray(model_jacobian(spec, theta, x))
     out = {}
     for c in covariates:
         if c == "direction" or c not in frame:

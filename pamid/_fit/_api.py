@@ -340,14 +340,14 @@ def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton
     (``load_bench``'s ``on_rows``). Does nothing on several devices (those calls do not go
     through the programs kept on disk). Returns whether every program was loaded."""
     from . import _export_cache
-    from ._batch import call_layout, default_chunk
+    from ._batch import call_layout, default_chunk, padded_rows
     from ._sharding import lane_devices
 
     counts = np.asarray(rows_per_muscle)
     devices = lane_devices()
     if counts.size == 0 or len(devices) > 1:
         return False
-    cpu, n = devices[0].platform == "cpu", int(counts.max())
+    cpu, n = devices[0].platform == "cpu", padded_rows(int(counts.max()))
     n_x = len(spec.to_x(*(np.zeros(1) for _ in spec.columns)))
 
     def lanes(chunk):

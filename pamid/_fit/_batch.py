@@ -79,8 +79,10 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         n_muscles: M (default ``codes.max() + 1``); a muscle with no rows is all padding.
 
     Padding repeats the muscle's first sample in ``x`` (so that the model stays finite
-    there), has y = 0, weight 0 and curve −1. No loop over muscles: positions within a
-    muscle by a cumulative count, then one scatter per array.
+    there), has y = 0, weight 0 and curve −1. Every lane has :func:`padded_rows` of the
+    largest muscle's row count: files of nearby lengths pack to one shape, so that they
+    share compiled programs. No loop over muscles: positions within a muscle by a cumulative
+    count, then one scatter per array.
     """
     codes = np.asarray(codes, dtype=np.int64)
     n = len(codes)
@@ -89,7 +91,7 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         raise ValueError("no muscles to fit")
     counts = np.bincount(codes, minlength=m)
     starts = np.cumsum(counts) - counts
-    n_max = int(counts.max()) if n else 0
+    n_max = padded_rows(int(counts.max()) if n else 0)
     if np.all(codes[1:] >= codes[:-1]):
         order = None  # each muscle one block, in order: no sort
         pos = np.arange(n) - starts[codes]
@@ -126,6 +128,43 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         w=jax.device_put(scatter(1.0, 0.0)),
         curve=jax.device_put(scatter(curve_ids, -1, dtype=np.int64)),
     )
+
+
+#: Row counts of packed batches: at least ``ROWS_MIN``, then a geometric grid of
+#: ``ROW_BUCKETS_PER_OCTAVE`` sizes per doubling (each a multiple of 8). A file of a row
+#: count never seen before packs to a size that an earlier file of nearby length had, so
+#: the programs compiled (and kept on disk) for that one serve it: compilation, not the
+#: arithmetic, is most of the time of a fit of one muscle. The padding (weight 0) costs
+#: at most 2^(1/4) − 1 = 19 % more arithmetic, 9 % on average (benchmarks/README.md,
+#: "Shape buckets").
+ROWS_MIN = 64
+ROW_BUCKETS_PER_OCTAVE = 4
+
+
+def padded_rows(n: int) -> int:
+    """The number of columns a batch whose largest muscle has ``n`` rows is packed to: the
+    smallest size of the grid (``ROWS_MIN``, then ``ROW_BUCKETS_PER_OCTAVE`` per doubling,
+    rounded up to a multiple of 8) that holds ``n``; 0 for no rows."""
+    if n <= 0:
+        return 0
+    if n <= ROWS_MIN:
+        return ROWS_MIN
+    steps = ROW_BUCKETS_PER_OCTAVE
+    k = max(0, int(np.floor(steps * np.log2(n / ROWS_MIN))) - 1)
+    while True:  # from just below, so that float rounding cannot skip a size
+        size = -(-int(np.ceil(ROWS_MIN * 2.0 ** (k / steps))) // 8) * 8
+        if size >= n:
+            return size
+        k += 1
+
+
+def padded_lanes(n: int, chunk: int) -> int:
+    """Lanes of a compiled call that takes ``n`` ≤ ``chunk`` lanes at once: the next power
+    of two (at most ``chunk``), so that files of 3 and of 4 muscles, or compare's folds of
+    a muscle with 4 curves and one with 5, run one program."""
+    if n <= 1:
+        return max(n, 1)
+    return min(chunk, 1 << (n - 1).bit_length())
 
 
 def _dense_within(codes, ids, order) -> np.ndarray:
@@ -222,8 +261,12 @@ def call_layout(n: int, chunk: int, cpu: bool = True) -> tuple[int, bool]:
     at most ``chunk``: the lanes of a call, and whether a call's arrays are NumPy views of
     those given (on the CPU, where the lanes take several calls) rather than the given arrays
     themselves (one call) or slices of them on the device. A compiled call is keyed by the
-    arrays' type as well as their shapes (``prepare_fit`` makes the same calls)."""
-    return (n, False) if n <= chunk else (chunk, cpu)
+    arrays' type as well as their shapes (``prepare_fit`` makes the same calls). Fewer lanes
+    than a call takes are padded to :func:`padded_lanes`, on the host (NumPy)."""
+    if n > chunk:
+        return chunk, cpu
+    size = padded_lanes(n, chunk)
+    return size, size != n
 
 
 def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
@@ -232,6 +275,14 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
     size, host = call_layout(n, chunk, cpu)
     if size == n:
         return jax.tree.map(np.asarray, fn(*arrays))
+    if size > n:  # one call of more lanes than given: the last one repeated, then dropped
+        part = jax.tree.map(lambda a: _lanes(np.asarray(a), 0, n, size), arrays)
+        if device is None:
+            out = fn(*part)
+        else:
+            with jax.default_device(device):
+                out = fn(*part)
+        return jax.tree.map(lambda a: np.asarray(a)[:n], out)
     starts = range(0, n, chunk)
 
     def run(start):

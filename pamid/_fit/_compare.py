@@ -42,7 +42,7 @@ from .._errors import BenchDataError
 from ._api import FitResult, bench_to_fit_data, fit_least_squares
 from ._batch import FitData, map_lanes, pack_rows
 from ._compare_options import BIC_FORMULA, MIN_TRIALS_FOR_TRIAL_CV, N_FOLDS
-from ._spec import MODELS, ModelSpec, get_model
+from ._spec import MODELS, ModelSpec, builtin_key, get_model
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -267,7 +267,9 @@ def _vmapped(predict: Callable) -> Callable:
 
 def predict_lanes(spec: ModelSpec, theta, x) -> np.ndarray:
     """The model of every lane at its own constants, in chunks of lanes."""
-    return map_lanes(_vmapped(spec.predict), jnp.asarray(theta, dtype=jnp.float64), x)
+    name = builtin_key(spec)
+    return map_lanes(_vmapped(spec.predict), jnp.asarray(theta, dtype=jnp.float64), x,
+                     cache_key=None if name is None else ("predict", *name))
 
 
 def fit_with_folds(bench: BenchData, spec: ModelSpec, plan: FoldPlan, *,

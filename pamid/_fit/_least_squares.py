@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._batch import FitData, map_lanes
+from ._batch import FitData, map_lanes, padded_rows
 from ._rank import RANK_RTOL
 from ._spec import ModelSpec, builtin_key
 
@@ -206,6 +206,8 @@ def solve(
                 spec, t0, x, y, w, lower, upper, max_steps=max(max_steps, 200)
             ),
             theta0, data.x, data.y, data.w,
+            cache_key=_key("solve_in_bounds", spec, max(max_steps, 200),
+                           tuple(np.asarray(lower).tolist()), tuple(np.asarray(upper).tolist())),
         )
     else:
         theta, ok, steps = map_lanes(
@@ -396,17 +398,38 @@ def _lane_sse(spec, theta, x, y, w):
     return jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
 
-@functools.partial(jax.jit, static_argnames="spec")
 def model_at(spec, theta, x):
     """The model of one muscle at ``theta`` on its inputs ``x`` (a tuple of 1-D arrays),
-    compiled once per spec and sample count: op by op, the diagnosis' per-muscle model
-    values and Jacobians took 1.5 s of a 4.5 s diagnosis of 100 muscles."""
+    compiled once per spec and padded sample count (:func:`._batch.padded_rows`): op by
+    op, the diagnosis' per-muscle model values and Jacobians took 1.5 s of a 4.5 s
+    diagnosis of 100 muscles."""
+    return _on_padded_rows(_model_at, spec, theta, x)
+
+
+def model_jacobian(spec, theta, x):
+    """∂F/∂θ of one muscle at ``theta`` (n × p), compiled as :func:`model_at` is."""
+    return _on_padded_rows(_model_jacobian, spec, theta, x)
+
+
+def _on_padded_rows(fn, spec, theta, x):
+    """``fn(spec, theta, x)`` on the rows of ``x`` padded (by repeating the last) to
+    :func:`._batch.padded_rows`, the padding's rows dropped: a file of another row count in
+    the same size class runs the same program."""
+    x = tuple(np.asarray(a, dtype=np.float64) for a in x)
+    n = len(x[0]) if x else 0
+    size = padded_rows(n)
+    if size > n > 0:
+        x = tuple(np.concatenate([a, np.repeat(a[-1:], size - n)]) for a in x)
+    return np.asarray(fn(spec, jnp.asarray(theta, dtype=jnp.float64), x))[:n]
+
+
+@functools.partial(jax.jit, static_argnames="spec")
+def _model_at(spec, theta, x):
     return spec.predict(theta, x)
 
 
 @functools.partial(jax.jit, static_argnames="spec")
-def model_jacobian(spec, theta, x):
-    """∂F/∂θ of one muscle at ``theta`` (n × p), compiled as :func:`model_at` is."""
+def _model_jacobian(spec, theta, x):
     return jax.jacfwd(lambda th: spec.predict(th, x))(theta)
 
 

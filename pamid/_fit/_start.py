@@ -51,19 +51,34 @@ def probe_inputs(inputs: tuple[str, ...], n: int = 8) -> tuple:
     )
 
 
-def linear_constants(predict, n_params: int, inputs: tuple[str, ...], reference) -> np.ndarray:
+def linear_constants(predict, n_params: int, inputs: tuple[str, ...], reference,
+                     cache_key: tuple | None = None) -> np.ndarray:
     """Which constants the model is linear in, jointly: a boolean mask of length p.
 
     The Hessian of the model in its constants is taken at ``reference`` (perturbed, so that
     no constant sits at a special value such as 0) at eight probe inputs of typical
     magnitude; constants with a zero second derivative are added one by one while every
     cross derivative with those already taken is zero too.
+
+    ``cache_key``: a name for ``predict`` that is the same in every process (one of pamid's
+    own models): the Hessian's program is then kept on disk when the command line keeps
+    programs (:mod:`._export_cache`), and a later process does not trace it again.
     """
     probe = probe_inputs(inputs)
     ref = np.asarray(reference, dtype=np.float64)
     bump = _fractions(n_params, 0.37) - 0.5
     theta = jnp.asarray(ref * (1.0 + 0.2 * bump) + 0.05 * bump)
-    hess = jax.jacfwd(jax.jacfwd(lambda th: predict(th, probe)))(theta)  # (n, p, p)
+    # One compiled program (kept by the compilation cache), not the model's operations one
+    # by one: run eagerly, each operation of the Hessian's trace was a program of its own,
+    # 4.6 s of a warm `pamid compare` of one muscle.
+    hessian = jax.jacfwd(jax.jacfwd(lambda th: predict(th, probe)))
+    if cache_key is None:
+        hess = jax.jit(hessian)(theta)  # (n, p, p)
+    else:
+        from ._export_cache import call
+
+        hess = call(("linear_constants", *cache_key, tuple(np.asarray(ref).tolist())),
+                    hessian, theta)
     size = np.nanmax(np.abs(np.asarray(hess)), axis=0)
     size = np.where(np.isfinite(size), size, np.inf)
     zero = size <= 1e-12 * max(float(np.max(np.where(np.isfinite(size), size, 0.0))), 1e-300)
