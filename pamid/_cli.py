@@ -304,6 +304,14 @@ class _Parser(argparse.ArgumentParser):
         message = " ".join(str(message).split())
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def format_help(self) -> str:
+        # A description may be a function, called only when the help is shown: the text
+        # of `pamid diagnose --help` lists the effects' registry, which imports JAX, and
+        # every command builds every parser (`pamid fit` waited 1 s for it).
+        if callable(self.description):
+            self.description = self.description()
+        return super().format_help()
+
     def parse_args(self, args=None, namespace=None):
         # argparse reports an unknown option from the top parser ("pamid: error: ...");
         # name the subcommand it was given to instead.
