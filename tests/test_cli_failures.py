@@ -461,3 +461,27 @@ def test_a_model_file_that_exits_is_a_failure_of_that_file(bench_csv, tmp_path, 
     line = _one_line(captured.err)
     lineno = at[-1] if "sys.exit" in tail else at[0]
     assert line.startswith(f"pamid: error: {path}, line {lineno}: ") and says in line, line
+
+
+# -- forces at the edge of float64 -------------------------------------------------------------
+
+
+def test_diagnose_of_forces_near_1e302_says_no_finite_fit_as_fit_does(bench_csv, tmp_path,
+                                                                     capsys):
+    """`pamid diagnose` ended in exit 3 (OverflowError, choosing an effect's grid value on
+    the baseline's residual) where `pamid fit` says "no finite fit" (exit 1): the baseline
+    is checked before anything is built on it."""
+    import pandas as pd
+
+    frame = pd.read_csv(bench_csv)
+    frame["force_N"] *= 1e300
+    path = tmp_path / "huge.csv"
+    frame.to_csv(path, index=False)
+    assert main(["fit", str(path), "--intervals", "wald", "--json"]) == 1
+    fitted = json.loads(capsys.readouterr().out)["muscles"][0]["message"]
+    assert fitted.startswith("no finite fit")
+    assert main(["diagnose", str(path), "--json"]) == 1
+    captured = capsys.readouterr()
+    line = _one_line(captured.err)
+    assert "is not trustworthy (no finite fit" in line and str(path) in line
+    assert json.loads(captured.out)["status"] == "not_trustworthy"

@@ -193,20 +193,6 @@ def _check_enough_rows(bench, spec) -> None:
         )
 
 
-def _check_baseline(bench, spec, baseline) -> None:
-    """The residual of a fit whose constants the data do not determine says nothing about
-    missing effects: such a muscle is refused with the fit's own reason (``baseline``, the
-    diagnosis's own fit of the model alone)."""
-    from .._errors import UntrustedResultError
-
-    for i, muscle in enumerate(bench.muscles):
-        if not baseline.converged[i]:
-            who = f"muscle '{muscle}'" if bench.has_muscle_column else "the data"
-            raise UntrustedResultError(
-                f"{bench.path}: the baseline {spec.source} fit of {who} is not trustworthy "
-                f"({baseline.message(i)}); a diagnosis of its residual would mean nothing")
-
-
 def _diagnose_bench(bench, model: str, n_folds: int, progress,
                     max_rows: int | None = None, bounds=None) -> Diagnosis:
     from .._fit._spec import get_model
@@ -221,8 +207,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
                      "(--max-rows)")
     spec = get_model(model, bench.frame)
     _check_enough_rows(bench, spec)
-    problem = StaticProblem(bench, spec, n_folds=n_folds, bounds=bounds)
-    _check_baseline(bench, spec, problem.baseline)
+    problem = StaticProblem(bench, spec, n_folds=n_folds, bounds=bounds)  # checks its baseline
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
                             progress=progress, unphysical=problem.unphysical,
                             refresh=problem.refresh_grids)

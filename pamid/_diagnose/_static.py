@@ -188,6 +188,21 @@ def _muscle_rows(bench) -> list[np.ndarray]:
     return [np.asarray(idx[m]) for m in bench.muscles]
 
 
+def check_baseline(bench, spec: ModelSpec, baseline) -> None:
+    """The residual of a fit whose constants the data do not determine (or that has no
+    finite fit: forces near 1e302) says nothing about missing effects: such a muscle is
+    refused with the fit's own reason (``baseline``, the diagnosis's own fit of the model
+    alone), an :class:`~pamid.UntrustedResultError` (exit 1, as ``pamid fit``)."""
+    from .._errors import UntrustedResultError
+
+    for i, muscle in enumerate(bench.muscles):
+        if not baseline.converged[i]:
+            who = f"muscle '{muscle}'" if bench.has_muscle_column else "the data"
+            raise UntrustedResultError(
+                f"{bench.path}: the baseline {spec.source} fit of {who} is not trustworthy "
+                f"({baseline.message(i)}); a diagnosis of its residual would mean nothing")
+
+
 class StaticProblem:
     """One bench file prepared for diagnosis: packed data, covariates and effect features."""
 
@@ -221,6 +236,7 @@ class StaticProblem:
         # determine is known (and said why) before any candidate is refitted on top of it.
         self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
                                           muscles=tuple(bench.muscles), bounds=bounds)
+        check_baseline(bench, spec, self.baseline)  # before anything is built on it
         self.theta0 = self.baseline.theta
         # A constant the baseline holds on a bound stays there in every refit (its gradient
         # points out of the bounds; an effect added on top is judged with it held).
