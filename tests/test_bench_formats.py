@@ -783,3 +783,20 @@ def test_cli_fits_the_lab_workbook(tmp_path, pamid_cli):
     assert f"{path}, sheet '300mm': --header-row 5" in res.stderr
     res = pamid_cli(["fit", path, "--header-row", "0"])
     assert res.returncode == 2 and "expected a row number, 1 or more" in res.stderr
+
+
+def test_strain_as_a_ratio_is_the_contraction(tmp_path):
+    path = write_lab_workbook(tmp_path / "lab.xlsx")
+    data = load_bench(path, sheet="300mm", columns={"strain": "contraction_ratio",
+                                                    "Pressure": "pressure_kPa",
+                                                    "Force": "force_N"})
+    strain = load_bench(path, sheet="300mm", columns=LAB_COLUMNS).frame["strain"]
+    np.testing.assert_allclose(data.frame["contraction_pct"], 100.0 * strain)
+    assert "contraction_ratio" not in data.frame and data.covariates == ("Inflated length",)
+    # a strain written in percent is out of range as a ratio: said, with the fix
+    csv = write(tmp_path, "pressure_kPa,force_N,strain\n100,50,0.05\n200,90,12\n")
+    err = raises_text(csv, "contraction ratio 12 is 1200 % of the nominal length, outside the "
+                           "physical range", columns={"strain": "contraction_ratio"})
+    assert (err.column, err.row) == ("strain", 2)
+    both = write(tmp_path, "pressure_kPa,force_N,contraction_pct,e\n100,50,5,0.05\n", "b.csv")
+    raises_text(both, "the contraction is given twice", columns={"e": "contraction_ratio"})

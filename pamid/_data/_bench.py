@@ -14,8 +14,9 @@ Required:
     * gauge pressure, as exactly one of ``pressure_kPa``, ``pressure_bar``, ``pressure_Pa``,
       ``pressure_psi`` (converted to kPa);
     * ``force_N``, the axial pulling force in N;
-    * ``contraction_pct``, 100 (l0 - length) / l0 in percent, or ``contraction_mm`` (the
-      contraction as a length, l0 - length), or else ``length_mm`` together
+    * ``contraction_pct``, 100 (l0 - length) / l0 in percent, or ``contraction_ratio``
+      (the same as a ratio, a strain as labs log it; converted to percent), or
+      ``contraction_mm`` (the contraction as a length, l0 - length), or else ``length_mm`` together
       with the nominal length l0 in mm, from an ``l0_mm`` column (constant within a muscle)
       or from the ``l0_mm=`` argument.
 Optional:
@@ -718,6 +719,25 @@ def _contraction(table: _Table, values: dict[str, np.ndarray], l0_rows: np.ndarr
     cols = table.columns
     lo, hi = CONTRACTION_RANGE_PCT
     contraction = contraction_mm = None
+    if "contraction_pct" in values and "contraction_ratio" in values:
+        raise table.error(
+            "the contraction is given twice, in % (contraction_pct) and as a ratio "
+            "(contraction_ratio); keep one of them",
+            column="contraction_ratio",
+        )
+    if "contraction_ratio" in values:  # a strain as labs log it, 0.12 for 12 %
+        ratio = values["contraction_ratio"]
+        i = _first_true((100.0 * ratio < lo) | (100.0 * ratio > hi))
+        if i is not None:
+            raise table.error(
+                f"contraction ratio {cols['contraction_ratio'].raw(i)} is "
+                f"{100.0 * ratio[i]:.4g} % of the nominal length, outside the physical range "
+                f"{lo:g} % to {hi:g} % (a ratio: 0.12 means 12 %; map a column in percent to "
+                "contraction_pct)",
+                column="contraction_ratio",
+                index=i,
+            )
+        values = {**values, "contraction_pct": 100.0 * ratio}
     if "contraction_pct" in values:
         contraction = values["contraction_pct"]
         i = _first_true((contraction < lo) | (contraction > hi))
@@ -857,11 +877,12 @@ def _check_required(table: _Table, l0_arg: float | None) -> str:
         missing.append("pressure_kPa (or pressure_bar, pressure_Pa, pressure_psi)")
     if "force_N" not in names:
         missing.append("force_N")
-    if not {"contraction_pct", "contraction_mm", "length_mm"} & set(names):
-        missing.append("contraction_pct (or contraction_mm, or length_mm with l0_mm)")
+    if not {"contraction_pct", "contraction_ratio", "contraction_mm", "length_mm"} & set(names):
+        missing.append("contraction_pct (or contraction_ratio, contraction_mm, or length_mm "
+                       "with l0_mm)")
     _check_missing(table, missing, n_required=3, kind="bench")
     if (
-        not {"contraction_pct", "contraction_mm"} & set(names)
+        not {"contraction_pct", "contraction_ratio", "contraction_mm"} & set(names)
         and "l0_mm" not in names
         and l0_arg is None
     ):

@@ -19,7 +19,7 @@ QUANTITY_UNITS: dict[str, tuple[str, ...]] = {
     "force": ("N",),
     "length": ("mm",),
     "l0": ("mm",),
-    "contraction": ("pct", "mm"),
+    "contraction": ("pct", "mm", "ratio"),
     "time": ("s",),
     "temperature": ("C",),
     "velocity": ("mm_s",),
