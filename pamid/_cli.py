@@ -384,6 +384,10 @@ def _parser() -> argparse.ArgumentParser:
     from ._commands import compare
 
     compare.register(sub)
+
+    from ._commands import warmup
+
+    warmup.register(sub)
     return parser
 
 

@@ -25,7 +25,8 @@ JAX arrays), and check less than the workflows do. ::
   ``"variable-projection"``, ``"jaxopt-levenberg-marquardt"``), :func:`statistics`;
   :func:`find_curves` (the curve structure the bootstrap and the cluster intervals group
   by); :func:`use_disk_caches` (the compiled programs kept on disk, as the command keeps
-  them).
+  them); :func:`padded_rows` (the size class of rows a batch is packed to: files of one
+  class run the same compiled programs).
 * Sárosi eq. 2.1's written-out kernels: the default start :func:`sarosi_fast_start`, the
   solver :func:`sarosi_gauss_newton`, variable projection (:func:`sarosi_variable_projection`,
   its start :func:`sarosi_variable_projection_start`, the fit at a fixed a3
@@ -52,6 +53,7 @@ JAX arrays), and check less than the workflows do. ::
 from ._data._curves import Curves, find_curves
 from ._diagnose._static import MAX_ITER as DIAGNOSIS_MAX_STEPS
 from ._diagnose._static import StaticProblem as StaticDiagnosisProblem
+from ._fit._batch import padded_rows
 from ._fit._correlated import (
     CLUSTER_KINDS,
     ar1_noise,
@@ -89,7 +91,7 @@ __all__ = [
     # The model registry.
     "ModelSpec", "get_model", "model_names",
     # Batched least squares, the curve structure, the disk caches.
-    "solve", "statistics", "Curves", "find_curves", "use_disk_caches",
+    "solve", "statistics", "Curves", "find_curves", "use_disk_caches", "padded_rows",
     # Sárosi eq. 2.1's written-out kernels: starts and solvers.
     "sarosi_fast_start", "sarosi_gauss_newton", "sarosi_fit_at_a3",
     "sarosi_variable_projection", "sarosi_variable_projection_start",

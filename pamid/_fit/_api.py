@@ -216,6 +216,12 @@ def _one_status(spec, data, lanes, i, n, full_rank, se, sse, status, messages):
         # The rank criterion on the constants not held on a bound; the null direction
         # names those the data cannot pin.
         jac = _jacobian_rows(spec, theta[i], data, i)
+        if not np.all(np.isfinite(jac)):  # no rank to speak of (NumPy's SVD fails on it)
+            bad = [nm for nm, ok in zip(names, np.isfinite(jac).all(axis=0)) if not ok]
+            return put("nonfinite", f"no finite fit: {spec.source} has NaN or ±inf "
+                       f"derivatives with respect to {', '.join(bad)} at the constants the "
+                       "solver reached (e.g. sqrt or abs at 0); the constants shown are not "
+                       "a result")
         ratio = null_direction(jac[:, free])[0] if free.any() else 1.0
         deficient = not ratio > RANK_RTOL
         if deficient:
@@ -347,7 +353,7 @@ def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton
     devices = lane_devices()
     if counts.size == 0 or len(devices) > 1:
         return False
-    cpu, n = devices[0].platform == "cpu", padded_rows(int(counts.max()))
+    cpu, n = devices[0].platform == "cpu", padded_rows(int(counts.max()), counts.size)
     n_x = len(spec.to_x(*(np.zeros(1) for _ in spec.columns)))
 
     def lanes(chunk):

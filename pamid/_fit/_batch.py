@@ -80,8 +80,8 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
 
     Padding repeats the muscle's first sample in ``x`` (so that the model stays finite
     there), has y = 0, weight 0 and curve −1. Every lane has :func:`padded_rows` of the
-    largest muscle's row count: files of nearby lengths pack to one shape, so that they
-    share compiled programs. No loop over muscles: positions within a muscle by a cumulative
+    largest muscle's row count (and the number of muscles): files of nearby lengths pack
+    to one shape, so that they share compiled programs. No loop over muscles: positions within a muscle by a cumulative
     count, then one scatter per array.
     """
     codes = np.asarray(codes, dtype=np.int64)
@@ -91,7 +91,7 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         raise ValueError("no muscles to fit")
     counts = np.bincount(codes, minlength=m)
     starts = np.cumsum(counts) - counts
-    n_max = padded_rows(int(counts.max()) if n else 0)
+    n_max = padded_rows(int(counts.max()) if n else 0, m)
     if np.all(codes[1:] >= codes[:-1]):
         order = None  # each muscle one block, in order: no sort
         pos = np.arange(n) - starts[codes]
@@ -130,25 +130,29 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
     )
 
 
-#: Row counts of packed batches: at least ``ROWS_MIN``, then a geometric grid of
-#: ``ROW_BUCKETS_PER_OCTAVE`` sizes per doubling (each a multiple of 8). A file of a row
-#: count never seen before packs to a size that an earlier file of nearby length had, so
-#: the programs compiled (and kept on disk) for that one serve it: compilation, not the
-#: arithmetic, is most of the time of a fit of one muscle. The padding (weight 0) costs
-#: at most 2^(1/4) − 1 = 19 % more arithmetic, 9 % on average (benchmarks/README.md,
-#: "Shape buckets").
+#: Row counts of packed batches: at least ``ROWS_MIN``; then, for a batch of few samples in
+#: all (lanes × rows ≤ ``SMALL_BATCH_SAMPLES``: a lab's file of one or a few muscles), the
+#: powers of two; for larger batches a geometric grid of ``ROW_BUCKETS_PER_OCTAVE`` sizes
+#: per doubling (each a multiple of 8). A file of a row count never seen before packs to a
+#: size that an earlier file of nearby length had, so the programs compiled (and kept on
+#: disk) for that one serve it. In a small batch compilation is nearly all of the time and
+#: the arithmetic of the padding (weight 0) next to nothing, so the classes are wide; in a
+#: large one the arithmetic counts, and the padding costs at most 2^(1/4) − 1 = 19 %
+#: (benchmarks/README.md, "Shape classes").
 ROWS_MIN = 64
 ROW_BUCKETS_PER_OCTAVE = 4
+SMALL_BATCH_SAMPLES = 16384
 
 
-def padded_rows(n: int) -> int:
-    """The number of columns a batch whose largest muscle has ``n`` rows is packed to: the
-    smallest size of the grid (``ROWS_MIN``, then ``ROW_BUCKETS_PER_OCTAVE`` per doubling,
-    rounded up to a multiple of 8) that holds ``n``; 0 for no rows."""
+def padded_rows(n: int, lanes: int = 1) -> int:
+    """The number of columns a batch of ``lanes`` muscles, the largest of ``n`` rows, is
+    packed to (module constants above); 0 for no rows."""
     if n <= 0:
         return 0
     if n <= ROWS_MIN:
         return ROWS_MIN
+    if n * max(lanes, 1) <= SMALL_BATCH_SAMPLES:
+        return 1 << (n - 1).bit_length()
     steps = ROW_BUCKETS_PER_OCTAVE
     k = max(0, int(np.floor(steps * np.log2(n / ROWS_MIN))) - 1)
     while True:  # from just below, so that float rounding cannot skip a size

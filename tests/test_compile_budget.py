@@ -1,0 +1,124 @@
+"""The compile budget of the commands a lab runs on its next file (counted, never timed).
+
+A new bench file of another row count packs to the size class of an earlier file of nearby
+length (``pamid._fit._batch.padded_rows``), so the programs compiled and kept on disk for
+the earlier one serve it: `pamid fit`, `compare` and `diagnose` on the second file compile
+nothing. Counted with JAX's own word for each program it had to compile
+(``JAX_EXPLAIN_CACHE_MISSES``: "PERSISTENT COMPILATION CACHE MISS"), in commands that run
+as a user runs them (a subprocess with the disk caches, ``PAMID_CACHE_DIR``).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from pamid._fit._batch import padded_lanes, padded_rows
+
+BUNDLED = Path(__file__).resolve().parents[1] / "pamid" / "data" / "sarosi_dmsp20_400_virtual.csv"
+MISS = re.compile(r"PERSISTENT COMPILATION CACHE MISS for '([^']+)'")
+
+#: Programs a command compiles on a file of a size class never seen (one muscle): the
+#: budget that keeps "few programs per command" from creeping back. Measured 2026-11-27
+#: with an empty cache: fit 4, diagnose 10, compare 64 (7 laws, each on all data and its
+#: folds as lanes of one call).
+BUDGET = {"fit": 6, "diagnose": 14, "compare": 80}
+
+
+def test_size_classes():
+    """Few samples in all (a lab's file of one or a few muscles): powers of two, since
+    compiling is nearly all of the time there; larger batches: four sizes per doubling,
+    the padding's arithmetic at most 19 %."""
+    small = sorted({padded_rows(n) for n in range(1, 16_385)})
+    assert small == [2**k for k in range(6, 15)]
+    large = sorted({padded_rows(n, lanes=1000) for n in range(1, 70_000)})
+    assert large[0] == 64 and all(s % 8 == 0 for s in large)
+    ratios = [b / a for a, b in zip(large, large[1:])]
+    assert max(ratios) <= 1.26 and min(ratios) > 1.1
+    for n in (1, 63, 64, 65, 299, 300, 1333, 20_000):
+        assert n <= padded_rows(n, lanes=1000) <= max(64, 1.26 * n)
+        assert n <= padded_rows(n) <= max(64, 2 * n)
+    assert padded_rows(0) == 0
+    assert padded_rows(300, lanes=54) == 512 and padded_rows(300, lanes=55) == 312
+    assert [padded_lanes(n, 512) for n in (1, 2, 3, 5, 6, 64, 65, 600)] == [
+        1, 2, 4, 8, 8, 64, 128, 512]
+
+
+def _misses(stderr: str) -> list[str]:
+    return MISS.findall(stderr)
+
+
+@pytest.fixture(scope="module")
+def two_files(tmp_path_factory):
+    """The bundled file (300 rows) and its first 290 rows: another row count, one class."""
+    folder = tmp_path_factory.mktemp("budget")
+    frame = pd.read_csv(BUNDLED)
+    assert padded_rows(len(frame)) == padded_rows(290) and len(frame) != 290
+    first, second = folder / "first.csv", folder / "second.csv"
+    frame.to_csv(first, index=False)
+    frame.iloc[:290].to_csv(second, index=False)
+    return first, second
+
+
+@pytest.mark.parametrize("command", ["fit", "compare", "diagnose"])
+def test_a_new_file_of_a_known_size_class_compiles_nothing(command, two_files, cli_env,
+                                                            tmp_path):
+    import subprocess
+
+    from conftest import PAMID
+
+    env = {**cli_env, "JAX_EXPLAIN_CACHE_MISSES": "1",
+           "PAMID_CACHE_DIR": str(tmp_path / "cache")}  # empty: every program counted
+
+    def run(path):
+        proc = subprocess.run([*PAMID, command, str(path), "--json"], capture_output=True,
+                              text=True, env=env, timeout=900)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert json.loads(proc.stdout)  # one JSON object, as always
+        return _misses(proc.stderr)
+
+    first = run(two_files[0])
+    assert 0 < len(first) <= BUDGET[command], first
+    second = run(two_files[1])
+    assert second == [], f"{command} compiled again on a file of the same size class: {second}"
+
+
+def test_warm_up_leaves_the_classes_compiled(cli_env, tmp_path):
+    """`pamid warm-up` (the README's set-up, `make demo`) compiles `pamid fit` for every
+    class up to --max-rows; a lab's first file of such a class then compiles nothing."""
+    import subprocess
+
+    from conftest import PAMID
+
+    env = {**cli_env, "JAX_EXPLAIN_CACHE_MISSES": "1", "PAMID_CACHE_DIR": str(tmp_path / "c")}
+    warm = subprocess.run([*PAMID, "warm-up", "--max-rows", "100", "--json"],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert warm.returncode == 0, warm.stderr[-2000:]
+    doc = json.loads(warm.stdout)
+    assert doc["classes_rows"] == [64, 128] and not doc["failed"]
+    assert [r["command"] for r in doc["runs"]] == ["fit", "fit"]
+    assert "warm-up done" in warm.stderr  # progress, in pamid's words
+    frame = pd.read_csv(BUNDLED)
+    path = tmp_path / "lab.csv"
+    frame.iloc[::3].to_csv(path, index=False)  # 100 rows: a file nobody ran
+    assert padded_rows(len(frame.iloc[::3])) == 128
+    fit = subprocess.run([*PAMID, "fit", str(path), "--json"], capture_output=True,
+                         text=True, env=env, timeout=900)
+    assert fit.returncode == 0, fit.stderr[-2000:]
+    assert _misses(fit.stderr) == []
+
+
+def test_warm_up_refuses_what_it_cannot_do(cli_env, tmp_path):
+    import subprocess
+
+    from conftest import PAMID
+
+    for args in (["--commands", "fit,plot"], ["--max-rows", "0"]):
+        proc = subprocess.run([*PAMID, "warm-up", *args], capture_output=True, text=True,
+                              env={**cli_env, "PAMID_CACHE_DIR": str(tmp_path)}, timeout=120)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+        assert "pamid: error:" in proc.stderr
