@@ -485,3 +485,30 @@ def test_diagnose_of_forces_near_1e302_says_no_finite_fit_as_fit_does(bench_csv,
     line = _one_line(captured.err)
     assert "is not trustworthy (no finite fit" in line and str(path) in line
     assert json.loads(captured.out)["status"] == "not_trustworthy"
+
+
+def test_diagnose_of_a_model_with_nan_derivatives_names_the_model(bench_csv, tmp_path, capsys):
+    """A model whose value is finite but whose derivatives are NaN (0·sqrt(|x|) at 0) ended
+    `pamid diagnose` with "SVD did not converge in Linear Least Squares" (exit 2), naming
+    neither the model nor its file."""
+    path = tmp_path / "nan_grad.py"
+    path.write_text('''
+import jax.numpy as jnp
+import pamid
+
+
+class NanGrad(pamid.ForceModel):
+    c0: float = 0.0
+    c1: float = 1.0
+    c2: float = -10.0
+    units = {"c0": "N", "c1": "N/kPa", "c2": "N/%"}
+    inputs = ("pressure_kPa", "contraction_pct")
+
+    def __call__(self, pressure_kPa, contraction_pct):
+        f = self.c0 + self.c1 * pressure_kPa + self.c2 * contraction_pct
+        return f + 0.0 * jnp.sqrt(jnp.abs(self.c0 - self.c0))
+''')
+    assert main(["diagnose", str(bench_csv), "--model", f"{path}:NanGrad"]) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert "SVD" not in line and str(bench_csv) in line
+    assert "no finite fit: NanGrad (user model) has NaN or ±inf derivatives" in line
