@@ -356,7 +356,10 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--bootstrap", type=int, default=0, metavar="B",
                      help="also bootstrap whole curves with B replicates per muscle")
     fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap and MCMC")
-    fit.add_argument("--max-plots", type=int, default=6, help="muscles to plot (default 6)")
+    from ._commands._common import NonNegative
+
+    fit.add_argument("--max-plots", type=int, action=NonNegative, default=6,
+                     help="muscles to plot (default 6)")
     from ._commands._reading import add_reading_arguments
     from ._commands.mcmc_options import add_mcmc_arguments
 

@@ -157,6 +157,13 @@ def test_message_of_an_exception_without_text():
      "pamid simulate positioning: error: unrecognized arguments: --zork "
      "(see pamid simulate positioning --help)"),
     ([], "pamid: error: the following arguments are required: command (see pamid --help)"),
+    # --max-plots -1 was accepted (fit plotted all muscles but the last)
+    *[([*command, "--max-plots", "-1"],
+       f"pamid {command[0]}: error: argument --max-plots: must be an integer ≥ 0, got -1 "
+       f"(see pamid {command[0]} --help)")
+      for command in (["fit", "x.csv"], ["compare", "x.csv"],
+                      ["damping", "d.csv", "--inertia", "1"],
+                      ["check-decays", "d.csv", "--model-json", "m.json", "--inertia", "1"])],
 ])
 def test_a_wrong_option_is_one_line_and_exit_2(argv, line, monkeypatch, capsys):
     """argparse printed its usage (several lines) above the error."""

@@ -369,8 +369,6 @@ def test_negative_values_in_exponent_form_are_read_as_values(capsys):
     (with_option(POS, "--muscle", "-1"), "--muscle must be an integer ≥ 0, got -1"),
     (with_option(POS, "--seed", str(2**32)), "--seed must be an integer in [0, 4294967295]"),
     (["damping", "D", "--inertia", "nan"], "--inertia must be positive (> 0 kg·m²), got nan"),
-    (["damping", "D", "--inertia", "1", "--max-plots", "-1"],
-     "--max-plots must be an integer ≥ 0, got -1"),
     (["check-decays", "D", "--model-json", "M", "--inertia", "1", "--posterior-draws",
       "99999999999999999999"], "--posterior-draws must be an integer in [0, 100000]"),
     (["check-decays", "D", "--model-json", "M", "--inertia", "-1e300"],

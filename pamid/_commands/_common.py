@@ -3,10 +3,12 @@ option and the accepted range, reading negative numbers as values, an angle axis
 
 from __future__ import annotations
 
+import argparse
 import math
 import sys
 
-__all__ = ["MAX_SEED", "allow_negative_numbers", "count", "finite", "plot_unit", "shown", "stage"]
+__all__ = ["MAX_SEED", "NonNegative", "allow_negative_numbers", "count", "finite", "plot_unit",
+           "shown", "stage"]
 
 
 def stage(message: str, quiet: bool) -> None:
@@ -55,6 +57,17 @@ def count(name: str, value: int, *, low: int = 0, high: int | None = None) -> in
         accepted = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
         raise ValueError(f"{name} must be an integer {accepted}, got {value}")
     return value
+
+
+class NonNegative(argparse.Action):
+    """The ``action`` of an ``int`` option that counts (``--max-plots``): a negative value is
+    argparse's one-line error, ``argument --max-plots: must be an integer ≥ 0, got -1``
+    (exit 2), as a value that is no integer is (``invalid int value: '1.5'``)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if values < 0:
+            raise argparse.ArgumentError(self, f"must be an integer ≥ 0, got {values}")
+        setattr(namespace, self.dest, values)
 
 
 #: Seeds that :func:`jax.random.key` turns into distinct keys.

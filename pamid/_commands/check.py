@@ -28,7 +28,15 @@ import time
 from pathlib import Path
 
 from .._io import safe_file_names
-from ._common import MAX_SEED, allow_negative_numbers, count, finite, plot_unit, stage
+from ._common import (
+    MAX_SEED,
+    NonNegative,
+    allow_negative_numbers,
+    count,
+    finite,
+    plot_unit,
+    stage,
+)
 
 #: Most posterior draws per trial that ``--posterior-draws`` simulates (one batched call).
 MAX_POSTERIOR_DRAWS = 100_000
@@ -57,7 +65,8 @@ def register(subparsers) -> None:
                           "from the logarithmic decrement")
     chk.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     chk.add_argument("--out", help="folder for check_<trial>.png and check_decays.json")
-    chk.add_argument("--max-plots", type=int, default=12, help="trials to plot (default 12)")
+    chk.add_argument("--max-plots", type=int, action=NonNegative, default=12,
+                     help="trials to plot (default 12)")
     chk.add_argument("--posterior-draws", type=int, default=0, dest="posterior_draws",
                      metavar="N",
                      help="also sample the posterior of every trial (MCMC) and simulate N "
@@ -238,7 +247,6 @@ def cmd_check_decays(args) -> int:
     quiet = args.json
     t_start = time.perf_counter()
     inertia = finite("--inertia", args.inertia, positive=True, unit="kg·m²")
-    count("--max-plots", args.max_plots)
     count("--posterior-draws", args.posterior_draws, high=MAX_POSTERIOR_DRAWS)
     count("--seed", args.seed, high=MAX_SEED)
     data = load_decay(args.decay)

@@ -44,7 +44,9 @@ def register(subparsers) -> None:
                      help=f"most cross-validation folds per muscle (default {N_FOLDS})")
     cmp.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     cmp.add_argument("--out", help="folder for compare.json and PNG plots")
-    cmp.add_argument("--max-plots", type=int, default=6,
+    from ._common import NonNegative
+
+    cmp.add_argument("--max-plots", type=int, action=NonNegative, default=6,
                      help="muscles to plot against every model (default 6)")
     cmp.add_argument("--bounds", default=None, metavar="[MODEL.]NAME=LOW:HIGH,...",
                      help="physical bounds of constants in place of the models' own, e.g. "
@@ -81,8 +83,6 @@ def cmd_compare(args) -> int:
 
     if args.folds < 2:
         raise ValueError("--folds must be at least 2")
-    if args.max_plots < 0:
-        raise ValueError("--max-plots must be 0 or more")
     models = _model_list(args.models)
     specs = [check_model(ref)  # a typo or a broken model file: one line, before reading data
              for ref in (models if models is not None else list(MODELS))]

@@ -17,8 +17,8 @@ from pathlib import Path
 
 from .._io import safe_file_names
 from ._common import (
+    NonNegative,
     allow_negative_numbers,
-    count,
     finite,
     plot_unit,
     stage,
@@ -97,7 +97,8 @@ def register(subparsers) -> None:
                      help="skip the trajectory fit (decrement estimates only)")
     dmp.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     dmp.add_argument("--out", help="folder for plots (PNG) and damping.json")
-    dmp.add_argument("--max-plots", type=int, default=6, help="trials to plot (default 6)")
+    dmp.add_argument("--max-plots", type=int, action=NonNegative, default=6,
+                     help="trials to plot (default 6)")
     dmp.set_defaults(func=cmd_damping)
     allow_negative_numbers(dmp)
 
@@ -366,7 +367,6 @@ def cmd_damping(args) -> int:
     quiet = args.json
     t_start = time.perf_counter()
     inertia = finite("--inertia", args.inertia, positive=True, unit="kg·m²")
-    count("--max-plots", args.max_plots)
     data = load_decay(args.decay)
     stage(f"loaded {len(data)} samples, {len(data.trials)} trial(s) from {args.decay}", quiet)
     stage("peaks and troughs, logarithmic decrement (Cullinan eq. 8–11)"
