@@ -193,6 +193,17 @@ def test_help_is_no_error(capsys):
     assert capsys.readouterr().out.startswith("usage: pamid fit ")
 
 
+@pytest.mark.parametrize("command", ["fit", "diagnose", "compare"])
+def test_the_help_of_a_model_option_says_a_model_file_is_code(command, capsys):
+    """`--model file.py:Class` runs whatever the file does; the help did not say so."""
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    assert stop.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert ("A model file is Python code: pamid imports it, which runs whatever it does, "
+            "with your permissions; give only files you trust") in text
+
+
 # -- a closed stdout --------------------------------------------------------------------------
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 
 __all__ = [
+    "CODE_WARNING",
     "add_bounds_argument",
     "add_model_argument",
     "bound_items",
@@ -19,6 +20,10 @@ __all__ = [
     "parse_bounds",
     "parse_bounds_per_model",
 ]
+
+#: What every option that takes a model file says: pamid imports the file, which runs it.
+CODE_WARNING = ("A model file is Python code: pamid imports it, which runs whatever it does, "
+                "with your permissions; give only files you trust")
 
 MODEL_HELP = ("force model: the name of one of pamid's own (sarosi: Sárosi eq. 2.1, p in bar, "
               "κ in %%; cullinan: Cullinan eq. 3, N, kPa, mm, s, with G when velocity_mm_s "
@@ -29,7 +34,7 @@ MODEL_HELP = ("force model: the name of one of pamid's own (sarosi: Sárosi eq. 
 def add_model_argument(parser: argparse.ArgumentParser, default: str = "sarosi") -> None:
     """Add ``--model NAME|FILE.py:CLASS``."""
     parser.add_argument("--model", default=default, metavar="NAME|FILE.py:CLASS",
-                        help=f"{MODEL_HELP} (default {default})")
+                        help=f"{MODEL_HELP} (default {default}). {CODE_WARNING}")
 
 
 def check_model(reference: str):

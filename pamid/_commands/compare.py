@@ -21,6 +21,7 @@ from pathlib import Path
 
 def register(subparsers) -> None:
     from .._fit._compare_options import BIC_FORMULA, MIN_TRIALS_FOR_TRIAL_CV, N_FOLDS
+    from ._model import CODE_WARNING
 
     cmp = subparsers.add_parser(
         "compare",
@@ -39,7 +40,8 @@ def register(subparsers) -> None:
     cmp.add_argument("--models", metavar="A,B,…",
                      help="comma-separated models: names of pamid's own and/or "
                           "path/to/file.py:ClassName (default: every registered model; "
-                          "those whose inputs the file lacks are skipped and listed)")
+                          "those whose inputs the file lacks are skipped and listed). "
+                          + CODE_WARNING)
     cmp.add_argument("--folds", type=int, default=N_FOLDS,
                      help=f"most cross-validation folds per muscle (default {N_FOLDS})")
     cmp.add_argument("--json", action="store_true", help="print one JSON object on stdout")
