@@ -4,6 +4,9 @@
     .venv/bin/python benchmarks/simulate_batch.py --quick    # smaller batches, fewer repeats
     .venv/bin/python benchmarks/simulate_batch.py --json out.json
 
+Needs diffrax, which pamid does not (the ``benchmarks`` extra: ``.venv/bin/pip install -e
+'.[benchmarks]'``).
+
 What is measured
 ----------------
 1. Integrator choice for the lifting mass (Sárosi eq. 2.2, :func:`pamid.simulate_lifting_mass`).
@@ -48,7 +51,6 @@ import jax
 
 jax.config.update("jax_enable_compilation_cache", False)
 
-import diffrax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
@@ -136,7 +138,20 @@ def lifting_rhs(model, y):
     return jnp.stack([v, force / model.mass_kg - model.gravity_m_per_s2])
 
 
+def _diffrax():
+    """diffrax, which only section 1 uses: it is in the ``benchmarks`` extra, not a
+    dependency of pamid (``.venv/bin/pip install -e '.[benchmarks]'``); ``benchmarks/run.py``
+    imports this module for :func:`decay_params` without it."""
+    try:
+        import diffrax
+    except ImportError:
+        raise SystemExit("benchmarks/simulate_batch.py needs diffrax: "
+                         ".venv/bin/pip install -e '.[benchmarks]'") from None
+    return diffrax
+
+
 def diffrax_lifting(solver, rtol, atol, ts):
+    diffrax = _diffrax()
     term = diffrax.ODETerm(lambda t, y, m: lifting_rhs(m, y))
     saveat = diffrax.SaveAt(ts=jnp.asarray(ts))
     controller = diffrax.PIDController(rtol=rtol, atol=atol)
@@ -213,6 +228,7 @@ def section_lifting(quick, repeats):
         **timing,
     }
 
+    diffrax = _diffrax()
     for name, solver in (
         ("diffrax_tsit5", diffrax.Tsit5()),
         ("diffrax_kvaerno5", diffrax.Kvaerno5()),
@@ -470,7 +486,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     repeats = 2 if args.quick else 3
     print(
-        f"pamid {pamid.__version__}, jax {jax.__version__}, diffrax {diffrax.__version__}, "
+        f"pamid {pamid.__version__}, jax {jax.__version__}, diffrax {_diffrax().__version__}, "
         f"scipy {scipy.__version__}, numpy {np.__version__}; {platform.processor() or 'cpu'}, "
         f"{os.cpu_count()} cores, {jax.devices()[0].platform}; "
         f"{datetime.datetime.now().isoformat(timespec='seconds')}"

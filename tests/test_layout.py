@@ -138,3 +138,32 @@ def test_no_module_imports_the_facade_at_import_time(module):
     # facade only inside a function (the command line's use of public names).
     eager = [line for src, dst, _, line, top in IMPORTS if src == module and dst == "pamid" and top]
     assert eager == []
+
+
+#: Runtime dependencies that pamid uses through another package, not by an import of its own.
+USED_THROUGH = {
+    "jaxlib": "jax's backend",
+    "flatbuffers": "jax.export's serialization (the CLI's cache of traced programs)",
+    "h5netcdf": "xarray's NetCDF-4 engine, found by name (pamid/_report/_mcmc.py)",
+    "h5py": "h5netcdf's",
+}
+
+
+def test_every_runtime_dependency_is_used_by_the_package():
+    """diffrax was a dependency of every installation, while only
+    benchmarks/simulate_batch.py imported it (now the ``benchmarks`` extra)."""
+    import re
+    import tomllib
+
+    project = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["project"]
+    imported = set()
+    for path in MODULES.values():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                imported |= {alias.name.split(".")[0] for alias in node.names}
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                imported.add(node.module.split(".")[0])
+    for requirement in project["dependencies"]:
+        name = re.match(r"[A-Za-z0-9_.-]+", requirement).group().lower()
+        assert name.replace("-", "_") in imported or name in USED_THROUGH, name
+    assert any(r.startswith("diffrax") for r in project["optional-dependencies"]["benchmarks"])
