@@ -440,17 +440,17 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code
     except BenchDataError as exc:
-        print(f"pamid: error: {exc}", file=sys.stderr)
+        print(f"pamid: error: {_option_words(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except ValueError as exc:  # bad options (a solver name, an output path onto an input)
         if failure.debugging():
             raise
-        print(f"pamid: error: {exc}", file=sys.stderr)
+        print(f"pamid: error: {_option_words(exc)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except UntrustedResultError as exc:  # exit 1, as a fit that did not converge
-        print(f"pamid: error: {exc}", file=sys.stderr)
+        print(f"pamid: error: {_option_words(exc)}", file=sys.stderr)
         if getattr(args, "json", False):  # --json: still exactly one JSON object
-            print(json.dumps({"status": "not_trustworthy", "message": str(exc)}))
+            print(json.dumps({"status": "not_trustworthy", "message": _option_words(exc)}))
         return 1
     except BrokenPipeError:  # `pamid fit --json | head -c 1`: the reader has what it wanted
         failure.silence_stdout()
@@ -481,7 +481,33 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"pamid: warning: {message}", file=sys.stderr)
+    print(f"pamid: warning: {_option_words(message)}", file=sys.stderr)
+
+
+#: How the library's messages name a parameter of its functions (``load_bench(...,
+#: keep_censored=True)``) that the command line sets by an option: the one place where an
+#: error or a warning on its way to the command line takes the option's name instead.
+_OPTION_OF_PARAMETER = (
+    (r"\bkeep_censored=True\b", "--keep-censored"),
+    (r"\bn_boot(strap)?\b", "--bootstrap"),
+    (r"\bn_walkers\b", "--walkers"),
+    (r"\bmax_steps\b", "--max-steps"),
+    (r"\bmax_rows\b", "--max-rows"),
+    (r"\bn_folds\b", "--folds"),
+)
+
+
+def _option_words(message) -> str:
+    """``message`` (an exception, a warning) with the command line's options in place of
+    the library's parameters: "pass keep_censored=True to keep them" → "pass
+    --keep-censored to keep them"; "n_boot must be at least 2" → "--bootstrap must be at
+    least 2"; a message that named both ("max_rows (--max-rows)") names the option once."""
+    import re
+
+    text = str(message)
+    for pattern, option in _OPTION_OF_PARAMETER:
+        text = re.sub(pattern, option, text)
+    return re.sub(r"(--[a-z-]+) \(\1\)", r"\1", text)
 
 
 def console_main() -> None:

@@ -432,7 +432,8 @@ def test_cli_max_rows_says_so_in_json_and_report(tmp_path, capsys):
 def test_cli_max_rows_must_be_positive(tmp_path, capsys):
     path = _sweeps(tmp_path, 10, 1)
     assert main(["diagnose", str(path), "--max-rows", "0"]) == 2
-    assert "max_rows (--max-rows) must be at least 1, not 0" in _one_line(capsys.readouterr().err)
+    line = _one_line(capsys.readouterr().err)
+    assert line == "pamid: error: --max-rows must be at least 1, not 0"
 
 
 # -- a model file that ends the program ------------------------------------------------------
@@ -530,3 +531,30 @@ class NanGrad(pamid.ForceModel):
     line = _one_line(capsys.readouterr().err)
     assert "SVD" not in line and str(bench_csv) in line
     assert "no finite fit: NanGrad (user model) has NaN or ±inf derivatives" in line
+
+
+# -- the command line names its options, not the library's parameters ---------------------------
+
+
+@pytest.mark.parametrize(("censored", "options", "says"), [
+    (6, ["--intervals", "wald", "--json"],
+     "pamid: warning: {path}: dropped 6 censored rows (force_N exactly 0) out of 300; pass "
+     "--keep-censored to keep them"),
+    (300, [], "pass --keep-censored to keep them"),
+    (0, ["--bootstrap", "1"], "pamid: error: --bootstrap must be at least 2"),
+    (0, ["--method", "mcmc", "--walkers", "3"], "pamid: error: --walkers must be even"),
+])
+def test_messages_name_the_commands_options(bench_csv, tmp_path, capsys, censored, options,
+                                            says):
+    """The command line said "pass keep_censored=True to keep them" and "n_boot must be at
+    least 2": the library's parameters, not the options that set them."""
+    import pandas as pd
+
+    frame = pd.read_csv(bench_csv)
+    frame.loc[frame.index < censored, "force_N"] = 0.0
+    path = tmp_path / "bench.csv"
+    frame.to_csv(path, index=False)
+    main(["fit", str(path), *options])
+    err = capsys.readouterr().err
+    assert says.format(path=path).lower() in err.lower(), err
+    assert "keep_censored" not in err and "n_boot" not in err and "n_walkers" not in err
