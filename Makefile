@@ -21,8 +21,8 @@ install: $(STAMP)
 # that a lab's first file starts warm (README, "The first run"). Not part of `make test`,
 # whose runs keep a cache of their own.
 $(WARM): $(STAMP)
-	$(VENV)/bin/pamid warm-up
-	@touch $@
+	@if $(VENV)/bin/pamid warm-up; then touch $@; else \
+	  echo "pamid warm-up did not finish: the first file of a class compiles its programs (make demo goes on)"; fi
 
 warm-up: $(WARM)
 

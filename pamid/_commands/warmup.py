@@ -102,18 +102,23 @@ def cmd_warm_up(args) -> int:
             proc = subprocess.run([sys.executable, "-m", "pamid", command, str(files[n]),
                                    "--json"], capture_output=True, text=True, env=env,
                                   cwd=tmp)
-            return command, n, proc.returncode, time.perf_counter() - s
+            lines = proc.stderr.strip().splitlines()
+            why = next((ln for ln in reversed(lines) if ln.startswith("pamid: error:")),
+                       lines[-1] if lines else "")
+            return command, n, proc.returncode, time.perf_counter() - s, why
 
         workers = max(1, min(len(jobs), len(os.sched_getaffinity(0))
                              if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
         with concurrent.futures.ThreadPoolExecutor(workers) as pool:
-            for i, (command, n, rc, secs) in enumerate(pool.map(run, jobs), start=1):
+            for i, (command, n, rc, secs, why) in enumerate(pool.map(run, jobs), start=1):
                 # exit 1 (a fit that did not converge) still compiled its programs
                 ok = rc in (0, 1)
-                (done if ok else failed).append({"command": command, "rows": n,
-                                                 "seconds": round(secs, 2), "exit": rc})
+                entry = {"command": command, "rows": n, "seconds": round(secs, 2), "exit": rc}
+                if not ok:
+                    entry["message"] = why
+                (done if ok else failed).append(entry)
                 print(f"[pamid] warm-up {i}/{len(jobs)}: {command}, {n} rows: "
-                      f"{secs:.1f} s{'' if ok else f' (exit {rc})'}", file=sys.stderr,
+                      f"{secs:.1f} s{'' if ok else f' (exit {rc}: {why})'}", file=sys.stderr,
                       flush=True)
     total = time.perf_counter() - t0
     print(f"[pamid] warm-up done in {total:.0f} s", file=sys.stderr, flush=True)
