@@ -44,8 +44,11 @@ def test_size_classes():
         assert n <= padded_rows(n) <= max(64, 2 * n)
     assert padded_rows(0) == 0
     assert padded_rows(300, lanes=54) == 512 and padded_rows(300, lanes=55) == 312
-    assert [padded_lanes(n, 512) for n in (1, 2, 3, 5, 6, 64, 65, 600)] == [
+    # few lane-samples in all: powers of two; more: multiples of 8, at most the chunk
+    assert [padded_lanes(n, 512, 64) for n in (1, 2, 3, 5, 6, 64, 65, 600)] == [
         1, 2, 4, 8, 8, 64, 128, 512]
+    assert [padded_lanes(n, 512, 312) for n in (3, 6, 52, 53, 100, 300, 509, 600)] == [
+        4, 8, 64, 56, 104, 304, 512, 512]
 
 
 def _misses(stderr: str) -> list[str]:

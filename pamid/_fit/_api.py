@@ -357,7 +357,7 @@ def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton
     n_x = len(spec.to_x(*(np.zeros(1) for _ in spec.columns)))
 
     def lanes(chunk):
-        m, host = call_layout(counts.size, chunk, cpu)
+        m, host = call_layout(counts.size, chunk, cpu, n)
         put = (lambda a: a) if host else jax.device_put
         zeros = lambda dtype=np.float64: put(np.zeros((m, n), dtype=dtype))  # noqa: E731
         return m, FitData(x=tuple(zeros() for _ in range(n_x)), y=zeros(), w=zeros(),

@@ -162,13 +162,18 @@ def padded_rows(n: int, lanes: int = 1) -> int:
         k += 1
 
 
-def padded_lanes(n: int, chunk: int) -> int:
-    """Lanes of a compiled call that takes ``n`` ≤ ``chunk`` lanes at once: the next power
-    of two (at most ``chunk``), so that files of 3 and of 4 muscles, or compare's folds of
-    a muscle with 4 curves and one with 5, run one program."""
+def padded_lanes(n: int, chunk: int, lane_size: int = 1) -> int:
+    """Lanes of a compiled call that takes ``n`` ≤ ``chunk`` lanes at once, each of
+    ``lane_size`` numbers (its rows, say): where the call is small (n × lane_size ≤
+    ``SMALL_BATCH_SAMPLES``) the next power of two, so that files of 3 and of 4 muscles, or
+    compare's folds of a muscle with 4 curves and one with 5, run one program; in a larger
+    call, whose arithmetic counts, the next multiple of 8 (at most 7 lanes of padding).
+    Never more than ``chunk``."""
     if n <= 1:
         return max(n, 1)
-    return min(chunk, 1 << (n - 1).bit_length())
+    if n * max(lane_size, 1) <= SMALL_BATCH_SAMPLES:
+        return min(chunk, 1 << (n - 1).bit_length())
+    return min(chunk, -(-n // 8) * 8)
 
 
 def _dense_within(codes, ids, order) -> np.ndarray:
@@ -260,23 +265,25 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     return _map_lanes_one_device(fn, arrays, n, chunk, device, cpu)
 
 
-def call_layout(n: int, chunk: int, cpu: bool = True) -> tuple[int, bool]:
+def call_layout(n: int, chunk: int, cpu: bool = True, lane_size: int = 1) -> tuple[int, bool]:
     """How :func:`map_lanes` calls its function on one device for ``n`` lanes in calls of
     at most ``chunk``: the lanes of a call, and whether a call's arrays are NumPy views of
     those given (on the CPU, where the lanes take several calls) rather than the given arrays
     themselves (one call) or slices of them on the device. A compiled call is keyed by the
     arrays' type as well as their shapes (``prepare_fit`` makes the same calls). Fewer lanes
-    than a call takes are padded to :func:`padded_lanes`, on the host (NumPy)."""
+    than a call takes are padded to :func:`padded_lanes` (``lane_size``: the numbers of the
+    largest array per lane), on the host (NumPy)."""
     if n > chunk:
         return chunk, cpu
-    size = padded_lanes(n, chunk)
+    size = padded_lanes(n, chunk, lane_size)
     return size, size != n
 
 
 def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
     import jax
 
-    size, host = call_layout(n, chunk, cpu)
+    lane_size = max(int(np.prod(np.shape(a)[1:])) for a in jax.tree.leaves(arrays))
+    size, host = call_layout(n, chunk, cpu, lane_size)
     if size == n:
         return jax.tree.map(np.asarray, fn(*arrays))
     if size > n:  # one call of more lanes than given: the last one repeated, then dropped
