@@ -421,7 +421,10 @@ def main(argv: list[str] | None = None) -> int:
         # returns; on any failure or signal --out is left as it was (pamid._io.output_folder).
         _io.protect_inputs(_input_files(args))
         with _io.output_folder(getattr(args, "out", None),
-                               command=_command_name(args)) as staging:
+                               command=_command_name(args)) as staging, \
+                warnings.catch_warnings():  # the start-up thread's warnings too
+            warnings.simplefilter("always")
+            warnings.showwarning = _show_warning
             if staging is not None:
                 args.out = str(staging)
             if getattr(args, "prepare", None) is not None:
@@ -432,10 +435,7 @@ def main(argv: list[str] | None = None) -> int:
                 restore_cache = args.startup.restore
             else:
                 restore_cache = _enable_compilation_cache()
-            with warnings.catch_warnings():
-                warnings.simplefilter("always")
-                warnings.showwarning = _show_warning
-                code = args.func(args)
+            code = args.func(args)
             failure.raise_if_signalled()  # a Ctrl-C that a callback swallowed: no commit
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code

@@ -558,3 +558,35 @@ def test_messages_name_the_commands_options(bench_csv, tmp_path, capsys, censore
     err = capsys.readouterr().err
     assert says.format(path=path).lower() in err.lower(), err
     assert "keep_censored" not in err and "n_boot" not in err and "n_walkers" not in err
+
+
+# -- a compilation cache that cannot be written -------------------------------------------------
+
+
+@pytest.fixture
+def unwritable_folder(tmp_path):
+    """A folder in which no file can be made, for this user."""
+    if os.geteuid() == 0:  # root writes into a folder of mode 0500
+        yield "/proc/self"  # it exists, and no file can be made in it
+        return
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    folder.chmod(0o500)
+    yield folder
+    folder.chmod(0o700)
+
+
+def test_a_cache_that_cannot_be_written_is_said_once(unwritable_folder):
+    """A read-only PAMID_CACHE_DIR gave one JAX warning ("Error writing persistent
+    compilation cache entry for 'jit_add'") per program compiled: 40 for
+    `simulate lifting-mass`."""
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", "PAMID_CACHE_DIR": str(unwritable_folder)}
+    res = subprocess.run([sys.executable, "-m", "pamid._cli", "simulate", "lifting-mass",
+                          "--pressure-kPa", "400", "--mass-kg", "50", "--x0-mm", "50", "--json"],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["x0_mm"] == 50
+    assert res.stderr.splitlines() == [
+        f"pamid: warning: the compilation cache PAMID_CACHE_DIR {unwritable_folder} cannot be "
+        f"written ({'No such file or directory' if os.geteuid() == 0 else 'Permission denied'}"
+        "): every program is compiled anew and none is kept for the next run"]

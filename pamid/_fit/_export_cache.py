@@ -87,20 +87,31 @@ def use_disk_caches(directory=None):
     cache in ``directory`` and pamid's exported programs (:func:`enable`) in its
     ``exported`` folder, so that a later process neither traces nor compiles what an earlier
     one ran. ``directory``: default ``PAMID_CACHE_DIR``, else ``~/.cache/pamid/jax``; one
-    that cannot be created leaves both caches as they were (everything is compiled as
-    usual). Returns the function that puts the caller's settings back (a test or a notebook
-    calling the command in-process keeps compiling as it did before)."""
+    that cannot be created or written leaves both caches as they were (everything is
+    compiled as usual), with one warning that says so (JAX's cache, switched on there,
+    warned once for every program it could not write). Returns the function that puts the
+    caller's settings back (a test or a notebook calling the command in-process keeps
+    compiling as it did before)."""
     import os
+    import tempfile
+    import warnings
 
     import jax
     from jax.experimental.compilation_cache import compilation_cache
 
     cache = directory or os.environ.get("PAMID_CACHE_DIR") or str(
         Path.home() / ".cache" / "pamid" / "jax")
-    try:
+    try:  # written to, not asked (os.access says yes to root on a read-only file system)
         Path(cache).mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return lambda: None  # an unwritable home is no reason to fail; we compile every time
+        fd, probe = tempfile.mkstemp(prefix=".pamid-probe-", dir=cache)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:  # no reason to fail: every program is compiled as usual
+        named = "PAMID_CACHE_DIR " if cache == os.environ.get("PAMID_CACHE_DIR") else ""
+        warnings.warn(f"the compilation cache {named}{cache} cannot be written "
+                      f"({exc.strerror or exc}): every program is compiled anew and none is "
+                      "kept for the next run", stacklevel=2)
+        return lambda: None
     names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs",
              "jax_persistent_cache_min_entry_size_bytes")
     before = {name: getattr(jax.config, name) for name in names}
