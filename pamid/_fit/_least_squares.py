@@ -398,6 +398,15 @@ def _lane_sse(spec, theta, x, y, w):
     return jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
 
+def lane_sse(spec, theta, data: FitData) -> np.ndarray:
+    """Σ w·(model − data)² of every lane at its constants (+inf where not finite), in calls
+    of the lanes' size classes (:func:`._batch.map_lanes`)."""
+    return np.asarray(map_lanes(
+        lambda t, x, y, w: _lane_sse(spec, t, x, y, w),
+        np.asarray(theta, dtype=np.float64), data.x, data.y, data.w,
+        cache_key=_key("lane_sse", spec)))
+
+
 def model_at(spec, theta, x):
     """The model of one muscle at ``theta`` on its inputs ``x`` (a tuple of 1-D arrays),
     compiled once per spec and padded sample count (:func:`._batch.padded_rows`): op by
@@ -450,7 +459,7 @@ def _best_of(spec, theta, ok, steps, data_rep, k, lower=None, upper=None):
     """Per muscle, the best of its ``k`` lanes (rows i·k …): the lowest SSE among the
     converged ones within the bounds (``lower``, ``upper``; where none is, among the
     converged ones), else the lowest SSE of all."""
-    sse = np.asarray(_lane_sse(spec, jnp.asarray(theta), data_rep.x, data_rep.y, data_rep.w))
+    sse = lane_sse(spec, theta, data_rep)
     sse = np.where(np.all(np.isfinite(theta), axis=-1), sse, np.inf).reshape(-1, k)
     ok = np.asarray(ok).reshape(-1, k)
     if lower is not None:
@@ -463,8 +472,7 @@ def _best_of(spec, theta, ok, steps, data_rep, k, lower=None, upper=None):
             # No lane of a muscle converged within the bounds: the one that will be refitted
             # within them is the one whose point, clipped into them, fits best (a far-away
             # optimum with a lower SSE can clip to a poor start).
-            clipped = np.asarray(_lane_sse(spec, jnp.asarray(np.clip(theta, lower, upper)),
-                                           data_rep.x, data_rep.y, data_rep.w)).reshape(-1, k)
+            clipped = lane_sse(spec, np.clip(theta, lower, upper), data_rep).reshape(-1, k)
             sse = np.where(any_inside, sse, clipped)
     score = np.where(ok, sse, np.inf)
     pick = np.where(np.any(np.isfinite(score), axis=1), np.argmin(score, axis=1),
@@ -679,8 +687,8 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
                                  theta0=np.asarray(cands[0])[:, :kk].reshape(-1, p),
                                  max_steps=max_steps, rtol=rtol, atol=atol)
             t2, ok2, st2 = _best_of(spec, t2, ok2, st2, rep, kk, lower, upper)
-            sse_old = np.asarray(_lane_sse(spec, jnp.asarray(theta[retry]), sub.x, sub.y, sub.w))
-            sse_new = np.asarray(_lane_sse(spec, jnp.asarray(t2), sub.x, sub.y, sub.w))
+            sse_old = lane_sse(spec, theta[retry], sub)
+            sse_new = lane_sse(spec, t2, sub)
             # Better: in bounds where the old one was not, else converged where the old one
             # was not, else a lower SSE.
             key_old = np.stack([outside(theta[retry]), ~ok[retry], sse_old], -1)
