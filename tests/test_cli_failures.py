@@ -330,7 +330,7 @@ def test_evaluate_on_a_muscle_of_20000_rows(tmp_path):
     """The first step of the selection on one muscle of 20,000 rows: every candidate, all
     data and five folds (before: an n × n array per lane, 205 GB for 64 lanes)."""
     problem = _problem(20000, tmp_path)
-    assert problem.features.shape[2] == 20000
+    assert problem.features.shape[2] == pamid.engine.padded_rows(20000)  # its size class
     sets = [(), *[(c,) for c in problem.candidate_names]]
     fits = problem.evaluate(sets)
     base = fits[0]
@@ -339,7 +339,7 @@ def test_evaluate_on_a_muscle_of_20000_rows(tmp_path):
     # no effect hidden: the baseline's RMSE is the reading noise (2 N, rounded to 0.1 N)
     assert 1.9 < base.rmse < 2.1
     assert base.cv_n == 20000  # every row held out once
-    assert base.extra["residual"].shape == (1, 20000)
+    assert base.extra["residual"].shape == (1, pamid.engine.padded_rows(20000))
 
 
 def test_start_subsample_of_a_long_muscle_is_a_gather_with_the_same_samples(monkeypatch):

@@ -31,7 +31,7 @@ def design(theta31, split_frame):
     constants = pamid.Sarosi.from_vector(jnp.tile(jnp.asarray(theta31), (N_SETS, 1)))
     frame = pamid.simulate_sarosi_bench(jax.random.key(2000), constants, protocol)
     data = pamid.pack_muscles(split_frame(frame))
-    assert data.y.shape == (N_SETS, 300)
+    assert data.y.shape == (N_SETS, pamid.engine.padded_rows(300, N_SETS))
     return data
 
 
