@@ -365,7 +365,9 @@ def _parser() -> argparse.ArgumentParser:
 
     add_reading_arguments(fit)
     add_mcmc_arguments(fit)
-    fit.set_defaults(func=_cmd_fit, prepare=_fit_prepare)
+    fit.set_defaults(func=_cmd_fit, prepare=_fit_prepare, outputs=(
+        "fit.json", "fit_*.png", "residuals_*.png", "rmse_histogram.png", "mcmc_*.nc",
+        "mcmc_*.nc3", "mcmc_*.png"))  # the names it writes in --out (checked before any work)
 
     demo = sub.add_parser("demo", help="fit the bundled virtual-bench data set, beside Table 3-1")
     demo.add_argument("--out", default="demo-out", help="folder for plots and demo.json")
@@ -420,6 +422,8 @@ def main(argv: list[str] | None = None) -> int:
         # command writes into a hidden staging folder, moved into --out as one set when it
         # returns; on any failure or signal --out is left as it was (pamid._io.output_folder).
         _io.protect_inputs(_input_files(args))
+        _io.refuse_inputs_among_outputs(_input_files(args), getattr(args, "out", None),
+                                        getattr(args, "outputs", ()))
         with _io.output_folder(getattr(args, "out", None),
                                command=_command_name(args)) as staging, \
                 warnings.catch_warnings():  # the start-up thread's warnings too

@@ -31,6 +31,7 @@ __all__ = [
     "final_place",
     "output_folder",
     "protect_inputs",
+    "refuse_inputs_among_outputs",
     "refuse_overwrite_input",
     "save_figure_atomic",
     "write_atomic",
@@ -70,12 +71,32 @@ def protect_inputs(paths: Iterable[str | os.PathLike | None]) -> None:
     _PROTECTED[:] = [Path(p) for p in paths if p]
 
 
+def refuse_inputs_among_outputs(inputs: Iterable[str | os.PathLike | None],
+                                out: str | os.PathLike | None,
+                                outputs: Iterable[str]) -> None:
+    """Before any computing: an input file that lies in the output folder ``out`` under a
+    name the command writes there (``outputs``: names and patterns, ``fit.json``,
+    ``fit_*.png``) is refused as :func:`refuse_overwrite_input` refuses it (ValueError,
+    one line), not when the results are written, after the work."""
+    import fnmatch
+
+    if not out:
+        return
+    outputs = tuple(outputs)
+    for inp in inputs:
+        if inp and any(fnmatch.fnmatchcase(Path(inp).name, p) for p in outputs):
+            refuse_overwrite_input(Path(out) / Path(inp).name, [inp])
+
+
 def check_output_place(out: str | os.PathLike | None) -> None:
     """Check an output folder before any computing: it is a folder or can be made one, and
     it can be written. Raises :class:`OutputPlaceError` naming the problem."""
     if out is None:
         return
     out = Path(out)
+    if out.is_symlink() and not out.exists():
+        raise OutputPlaceError(f"--out {out} is a symbolic link to {os.readlink(out)}, which "
+                               "does not exist; make that folder or name another")
     if out.exists() and not out.is_dir():
         raise OutputPlaceError(f"--out {out} is a file, not a folder; name a folder for the "
                                "results")

@@ -150,6 +150,7 @@ def test_muscles_whose_names_read_alike_each_get_their_own_plots(tmp_path, capsy
     assert len(set(doc["plots"])) == len(doc["plots"]) == len(owners) + 1
     assert set(doc["plots"]) <= {p.name for p in out.iterdir()}
     assert all(len(name.encode()) < 255 for name in doc["plots"])
+    _written_as_declared(out, [command[0], "x.csv"])
     kind = "fit" if command[0] == "fit" else "models"
     assert owners[f"{kind}_A_B.png"] == "A_B"
     assert owners[f"{kind}_Festo10mm_lc40cm.png"] == "Festo10mm_lc40cm"
@@ -176,3 +177,55 @@ def test_trials_whose_names_read_alike_each_get_their_own_plot(tmp_path, capsys)
     assert sorted(doc["trial_of_file"].values()) == ["a/b", "a_b"]
     assert sorted(doc["plots"]) == sorted([*doc["trial_of_file"], "decrement.png"])
     assert set(doc["plots"]) <= {p.name for p in out.iterdir()}
+    _written_as_declared(out, ["damping", "d.csv", "--inertia", "1"])
+
+
+def _written_as_declared(out, argv):
+    """Every file the command wrote has a name it declares (``outputs``: what is checked
+    against its input files before any work)."""
+    import fnmatch
+
+    from pamid._cli import _parser
+
+    declared = _parser().parse_args(argv).outputs
+    for path in out.iterdir():
+        if path.name != ".pamid-outputs.json":
+            assert any(fnmatch.fnmatchcase(path.name, p) for p in declared), path.name
+
+
+# -- caught before any computing ----------------------------------------------------------------
+
+
+def test_out_as_a_dangling_symlink_is_refused_before_computing(tmp_path, capsys):
+    """`--out LINK` to a folder that does not exist ran the whole fit, then said "cannot
+    move the results into LINK: No such file or directory"."""
+    link = tmp_path / "results"
+    link.symlink_to(tmp_path / "gone" / "results")
+    assert main(["fit", str(BUNDLED), "--intervals", "wald", "--out", str(link)]) == 2
+    err = capsys.readouterr().err
+    assert "fitting" not in err and "loaded" not in err  # nothing read, nothing computed
+    assert [line for line in err.splitlines() if line.startswith("pamid: error:")] == [
+        f"pamid: error: --out {link} is a symbolic link to {tmp_path / 'gone' / 'results'}, "
+        "which does not exist; make that folder or name another"]
+    assert link.is_symlink() and not (tmp_path / "gone").exists()
+
+
+@pytest.mark.parametrize(("command", "name"), [
+    (["fit", "--intervals", "wald"], "fit.json"),
+    (["compare", "--models", "sarosi"], "compare.json"),
+    (["diagnose"], "diagnosis.json"),
+])
+def test_an_input_named_like_an_output_is_refused_before_computing(tmp_path, capsys, command,
+                                                                   name):
+    """`pamid fit DIR/fit.json --out DIR` (a bench file under the name of an output) read
+    the file and ran the whole fit before it refused to replace it."""
+    data = tmp_path / name
+    data.write_bytes(BUNDLED.read_bytes())
+    assert main([command[0], str(data), *command[1:], "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "loaded" not in err and "diagnosing" not in err  # nothing read, nothing computed
+    assert [line for line in err.splitlines() if line.startswith("pamid: error:")] == [
+        f"pamid: error: refusing to write {data}: it is the input file {data}; choose "
+        "another output path"]
+    assert data.read_bytes() == BUNDLED.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]

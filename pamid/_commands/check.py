@@ -73,7 +73,8 @@ def register(subparsers) -> None:
                           "draws per trial in one batched call: 95%% predictive band and "
                           "its coverage of the recording (default 0: off)")
     chk.add_argument("--seed", type=int, default=0, help="PRNG seed for the posterior draws")
-    chk.set_defaults(func=cmd_check_decays)
+    chk.set_defaults(func=cmd_check_decays,
+                     outputs=("check_decays.json", "check_*.png", "predictive_*.png"))
     allow_negative_numbers(chk)
 
 

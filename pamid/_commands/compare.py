@@ -57,7 +57,7 @@ def register(subparsers) -> None:
     from ._reading import add_reading_arguments
 
     add_reading_arguments(cmp)
-    cmp.set_defaults(func=cmd_compare)
+    cmp.set_defaults(func=cmd_compare, outputs=("compare.json", "models_*.png", "cv_rmse.png"))
 
 
 def _model_list(text: str | None) -> list[str] | None:

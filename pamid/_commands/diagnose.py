@@ -61,7 +61,8 @@ def register(subparsers) -> None:
     from ._reading import add_reading_arguments
 
     add_reading_arguments(diag)
-    diag.set_defaults(func=cmd_diagnose)
+    diag.set_defaults(func=cmd_diagnose, outputs=(
+        "diagnosis.json", "report.txt", "residuals_before_after.png", "residual_time_order.png"))
 
 
 def cmd_diagnose(args) -> int:

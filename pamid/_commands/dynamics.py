@@ -72,7 +72,7 @@ def register(subparsers) -> None:
                     help="g in m/s² (default 9.81)")
     lm.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     lm.add_argument("--out", help="folder for lifting_mass.png and lifting_mass.json")
-    lm.set_defaults(func=cmd_lifting_mass)
+    lm.set_defaults(func=cmd_lifting_mass, outputs=("lifting_mass.json", "lifting_mass.png"))
     allow_negative_numbers(lm)
 
     from .positioning import add_positioning_parser
@@ -99,7 +99,7 @@ def register(subparsers) -> None:
     dmp.add_argument("--out", help="folder for plots (PNG) and damping.json")
     dmp.add_argument("--max-plots", type=int, action=NonNegative, default=6,
                      help="trials to plot (default 6)")
-    dmp.set_defaults(func=cmd_damping)
+    dmp.set_defaults(func=cmd_damping, outputs=("damping.json", "decay_*.png", "decrement.png"))
     allow_negative_numbers(dmp)
 
 

@@ -77,7 +77,7 @@ def add_positioning_parser(systems_subparsers) -> None:
     )
     ps.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     ps.add_argument("--out", help="folder for positioning.png and positioning.json")
-    ps.set_defaults(func=cmd_positioning)
+    ps.set_defaults(func=cmd_positioning, outputs=("positioning.json", "positioning.png"))
     allow_negative_numbers(ps)
 
 
