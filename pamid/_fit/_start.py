@@ -130,6 +130,26 @@ def trial_values(defaults, lower, upper, nonlinear: np.ndarray) -> np.ndarray:
 #: of a batch has a smaller pivot (dependent columns, a constant the data do not see), the
 #: whole batch is solved by an SVD instead.
 CHOLESKY_PIVOT = 1e-8
+#: Most linear constants solved by the written-out Cholesky. Its trace grows as the cube of
+#: their number (n³/6 scalar operations, twice for the refinement): for 20 constants, 9 s of
+#: a profiled 20 s ``pamid fit --intervals wald``; for 50, not done in 120 s; above this,
+#: one batched LAPACK Cholesky (benchmarks/README.md, "Models of many constants").
+UNROLLED_CHOLESKY_MAX = 8
+
+
+def _lapack_cholesky_solve(gram, c):
+    """``(z, smallest pivot)`` of gram·z = c over a batch (…, n, n), as
+    :func:`pamid._fit._variable_projection._small_cholesky_solve` gives them, by LAPACK. A
+    matrix that is not positive definite (NaN factor) gets the pivot −inf, so that the
+    caller falls back to the SVD."""
+    low = jnp.linalg.cholesky(gram)
+    diag = jnp.diagonal(low, axis1=-2, axis2=-1)
+    pivot = jnp.min(diag**2, axis=-1)
+    ok = jnp.all(jnp.isfinite(low), axis=(-2, -1))
+    from jax.scipy.linalg import cho_solve
+
+    z = cho_solve((low, True), c[..., None])[..., 0]
+    return z, jnp.where(ok, pivot, -jnp.inf)
 
 
 def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower, upper):
@@ -177,6 +197,8 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
         return theta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
     def cholesky(gram, c):
+        if n_lin > UNROLLED_CHOLESKY_MAX:
+            return _lapack_cholesky_solve(gram, c)
         return jax.vmap(jax.vmap(lambda g, c: _small_cholesky_solve(g, c, with_pivot=True)))(
             gram, c)
 
