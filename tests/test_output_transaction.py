@@ -12,6 +12,8 @@ import gc
 import json
 import os
 import signal
+import sys
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -138,6 +140,44 @@ def test_a_ctrl_c_that_a_finalizer_swallowed_still_stops_the_run(old_results, tm
         failure.EXIT_INTERRUPTED
     assert "pamid: interrupted" in capsys.readouterr().err
     assert snapshot(old_results) == before
+
+
+class _SwallowsTerm:
+    def __del__(self):
+        _signal_here(signal.SIGTERM)
+
+
+def test_a_sigterm_that_a_finalizer_swallowed_ends_the_run_at_once(old_results, tmp_path,
+                                                                    monkeypatch, capsys):
+    """Issue 32, item 6: a SIGTERM that arrived inside a finalizer was printed as an ignored
+    exception (a traceback on stderr) and acted on only before the commit, after the rest of
+    the run (33 s). It is sent again when the finalizer is over: the run ends while the
+    first figure's caller still sleeps, draws no other figure, and prints no traceback."""
+    monkeypatch.delenv("PAMID_DEBUG", raising=False)
+    before = snapshot(old_results)
+    other = tmp_path / "other.csv"
+    frame = pd.read_csv(BUNDLED)
+    frame.iloc[: len(frame) - 40].to_csv(other, index=False)
+    drawn, unraisable = [], []
+    monkeypatch.setattr(sys, "unraisablehook", lambda u: unraisable.append(u))
+
+    def swallow_then_wait():
+        _SwallowsTerm()
+        drawn.append("swallowed")
+        time.sleep(5.0)  # the redelivered SIGTERM ends the run in here
+        drawn.append("slept")
+
+    _after_figure(monkeypatch, swallow_then_wait, n=1)
+    real = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (drawn.append("figure"),
+                                                                    real(self, *a, **k)))
+    assert main(["fit", str(other), "--intervals", "wald", "--out", str(old_results)]) == \
+        failure.EXIT_TERMINATED
+    err = capsys.readouterr().err
+    assert "pamid: terminated" in err and "Traceback" not in err and "ignored" not in err
+    assert drawn == ["figure", "swallowed"] and unraisable == []
+    assert snapshot(old_results) == before
+    assert sys.unraisablehook is not failure._on_unraisable  # put back
 
 
 @pytest.mark.parametrize("command", list(COMMANDS))

@@ -31,20 +31,68 @@ class Terminated(BaseException):
 
 #: Signals received while :func:`catch_signals`' handlers were in place, first first.
 _RECEIVED: list[int] = []
+#: Whether a command's handlers are in place (:func:`catch_signals` to
+#: :func:`restore_signals`): only then does a signal raise.
+_ACTIVE = False
+#: Seconds after a signal's exception was swallowed (:func:`_on_unraisable`) before the
+#: signal is sent to the main thread again.
+REDELIVER_S = 0.02
+_LOCK = threading.Lock()
+_PREVIOUS_HOOK: list = []
+#: Whether a signal's exception is on its way (raised and not swallowed since): a second
+#: signal (a redelivery, another kill) then does not interrupt the clean-up it runs.
+_RAISED = False
 
 
 def _on_signal(signum, frame):
+    global _RAISED
     _RECEIVED.append(signum)
-    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+    # Not after restore_signals has begun (a late redelivery ends nothing), nor a second
+    # time while the first exception is still on its way.
+    if _ACTIVE and not _RAISED:
+        _RAISED = True
+        raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+
+
+def _on_unraisable(unraisable) -> None:
+    """``sys.unraisablehook`` while a command runs. Python runs a signal handler between
+    two bytecodes of the main thread, which may be inside a garbage collector's callback
+    (JAX registers one) or a ``__del__``: there the handler's exception is "ignored",
+    printed with its traceback and dropped, and the command ran on to its end (a SIGTERM
+    acted on 33 s late, before the commit, by :func:`raise_if_signalled`). Here it is
+    dropped silently and the signal sent again to the main thread a moment later, when the
+    finalizer is over, so that it ends the command where it runs."""
+    global _RAISED
+    exc = unraisable.exc_value
+    if _ACTIVE and _RECEIVED and isinstance(exc, (Terminated, KeyboardInterrupt)):
+        _RAISED = False
+        signum = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+        timer = threading.Timer(REDELIVER_S, _redeliver, (signum,))
+        timer.daemon = True
+        timer.start()
+        return
+    (_PREVIOUS_HOOK[-1] if _PREVIOUS_HOOK else sys.__unraisablehook__)(unraisable)
+
+
+def _redeliver(signum) -> None:
+    with _LOCK:
+        if _ACTIVE:
+            signal.pthread_kill(threading.main_thread().ident, signum)
 
 
 def catch_signals():
     """Turn SIGTERM into :class:`Terminated` and SIGINT into :class:`KeyboardInterrupt` for
-    the running command, and remember that they came (:func:`raise_if_signalled`); returns
+    the running command, and remember that they came (:func:`raise_if_signalled`); a signal
+    whose exception a finalizer swallowed is sent again (:func:`_on_unraisable`). Returns
     the previous handlers (None outside the main thread, where no handler can be set)."""
+    global _ACTIVE, _RAISED
     if threading.current_thread() is not threading.main_thread():
         return None
     _RECEIVED.clear()
+    _RAISED = False
+    _PREVIOUS_HOOK.append(sys.unraisablehook)
+    sys.unraisablehook = _on_unraisable
+    _ACTIVE = True
     return {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
 
 
@@ -54,14 +102,21 @@ def raise_if_signalled() -> None:
     collector's callback (JAX registers one) or a ``__del__``, where an exception is
     printed as "ignored" and dropped. A Ctrl-C there was lost: the command ran on and
     replaced ``--out``. Called before the results are committed."""
+    global _RAISED
     if _RECEIVED:
+        _RAISED = True
         raise Terminated if _RECEIVED[0] == signal.SIGTERM else KeyboardInterrupt
 
 
 def restore_signals(previous) -> None:
+    global _ACTIVE
     if previous is not None:
+        _ACTIVE = False  # first: a signal from here on is remembered, never raised
+        with _LOCK:  # and no redelivery is under way
+            pass
         for s, handler in previous.items():
             signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        sys.unraisablehook = _PREVIOUS_HOOK.pop() if _PREVIOUS_HOOK else sys.__unraisablehook__
 #: Longest message quoted from an exception (XLA's run to many lines).
 MAX_QUOTE = 300
 
