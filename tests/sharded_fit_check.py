@@ -139,7 +139,8 @@ def main(full=False):
     hlo = _statistics.lower(SAROSI, *args).compile().as_text()
     out["hlo"] = {
         "num_partitions": sorted(set(re.findall(r"num_partitions=(\d+)", hlo))),
-        "lane_shapes": sorted(set(re.findall(r"f64\[(\d+),100\]", hlo))),
+        # the rows of a lane: 100, padded to their size class
+        "lane_shapes": sorted(set(re.findall(rf"f64\[(\d+),{data.y.shape[1]}\]", hlo))),
         "mesh_axis_types": str(sharding.mesh.axis_types),
     }
 

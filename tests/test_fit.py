@@ -159,7 +159,11 @@ def test_batched_fit_equals_loop_of_single_fits(small_bench, solver):
     # exact: see test_batched_solve_is_exact_from_the_same_start.
     # Variable projection locates the minimum of S(a3) from function values, which pins it
     # only to about √ε ≈ 1.5e-8 (relative): up to 2.5e-8 with numpy 2.5 / scipy 1.18.
-    rtol = 5e-8 if solver in ("levenberg-marquardt", "variable-projection") else 1e-8
+    # jaxopt's Levenberg-Marquardt: its path depends on how the batch's linear algebra rounds
+    # (test_batched_solve_is_exact_from_the_same_start); with the batch of 3 padded to 4
+    # lanes of 512 rows it stopped 1.3e-8 from the batch of one.
+    rtol = (5e-8 if solver in ("levenberg-marquardt", "variable-projection")
+            else 2e-8 if solver == "jaxopt-levenberg-marquardt" else 1e-8)
     for i, group in enumerate(small_bench.groups):
         one = pamid.fit_least_squares(single(group), solver=solver)
         assert_rel(batch.theta[i], one.theta[0], rtol, f"muscle {i} constants")
@@ -272,8 +276,10 @@ def test_pathological_muscle_neither_crashes_the_batch_nor_looks_good(small_benc
     for lane, group in ((0, good0), (2, good1)):
         one = pamid.fit_least_squares(single(group), solver=solver)
         assert result.converged[lane]
-        # variable projection: a minimum from function values, to about √ε (see above)
-        tol = 5e-8 if solver == "variable-projection" else 1e-8
+        # variable projection: a minimum from function values, to about √ε; jaxopt's
+        # Levenberg-Marquardt: a path that depends on the batch's rounding (see above)
+        tol = (5e-8 if solver == "variable-projection"
+               else 2e-8 if solver == "jaxopt-levenberg-marquardt" else 1e-8)
         assert_rel(result.theta[lane], one.theta[0], tol, f"lane {lane}")
         assert_rel(result.ci95[lane], one.ci95[0], tol, f"lane {lane} intervals")
 
@@ -487,7 +493,8 @@ def test_fit_data_is_a_batch_of_jax_arrays(small_bench):
     assert data.n_muscles == 3
     assert all(isinstance(a, jax.Array) and a.dtype == jnp.float64 for a in (*data.x, data.y))
     # Curves of the virtual bench: 5 pressures × 2 directions, 30 samples each.
-    np.testing.assert_array_equal(np.asarray(data.curve[0]), np.repeat(np.arange(10), 30))
+    np.testing.assert_array_equal(np.asarray(data.curve[0])[:300], np.repeat(np.arange(10), 30))
+    assert (np.asarray(data.curve[0])[300:] == -1).all()  # the padding to the size class
 
 
 def test_chunked_lanes_equal_one_call(small_bench, monkeypatch):

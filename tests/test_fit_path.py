@@ -32,7 +32,8 @@ def pack_loop(groups, curves=None):
     """Padded arrays muscle by muscle: padding repeats the first sample in x, y = 0, w = 0,
     curve −1; curve ids made dense per muscle with np.unique."""
     n_x, m = len(groups[0][0]), len(groups)
-    n_max = max(len(y) for _, y in groups)
+    # the longest muscle's rows, padded to their size class (pamid.engine.padded_rows)
+    n_max = pamid.engine.padded_rows(max(len(y) for _, y in groups), m)
     xs = np.zeros((n_x, m, n_max))
     y = np.zeros((m, n_max))
     w = np.zeros((m, n_max))
@@ -128,9 +129,10 @@ def test_packed_curves_are_the_files_curves_and_restart_in_every_muscle(tmp_path
     frame.to_csv(path, index=False)
     bench = pamid.load_bench(path)
     data = bench_to_fit_data(bench)
-    np.testing.assert_array_equal(np.asarray(data.curve), [[0, 0, 1, 1], [0, 0, 1, 1]])
+    np.testing.assert_array_equal(np.asarray(data.curve)[:, :4], [[0, 0, 1, 1], [0, 0, 1, 1]])
+    assert (np.asarray(data.curve)[:, 4:] == -1).all()  # the padding to the size class
     np.testing.assert_array_equal(bench.curves.curve, [0, 0, 1, 1, 0, 0, 1, 1])
-    assert (np.asarray(bench_to_fit_data(bench, curves=False).curve) == 0).all()
+    assert (np.asarray(bench_to_fit_data(bench, curves=False).curve)[:, :4] == 0).all()
 
 
 # ----------------------------------------------------------------------------------------
