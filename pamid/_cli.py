@@ -42,8 +42,12 @@ def _enable_compilation_cache():
 
 
 def _format_table(result, published=None) -> str:
-    """Constants with Wald 95% intervals (and profile/bootstrap/published where present)."""
+    """Constants with the 95% interval each muscle shows (Wald's, or the cluster interval
+    where its residual is correlated: ``FitResult.shown_of``), then Wald's where another is
+    shown, and profile/bootstrap/cluster/HAC/published where present."""
     lines = []
+    shown_ci, _ = result.shown_intervals()
+    labels = {"wald-t": "95%", "cluster": "cluster", "hac": "HAC"}
     for i, muscle in enumerate(result.muscles):
         status = result.status_of(i) if result.converged[i] else \
             f"NOT CONVERGED: {result.status_of(i)}"
@@ -56,20 +60,26 @@ def _format_table(result, published=None) -> str:
             lines.append(f"  why: {result.message(i)}")
         if i < len(result.interval_notes) and result.interval_notes[i]:
             lines.append(f"  intervals: {result.interval_notes[i]}")
-        cols = ["constant", "unit", "value", "95% low", "95% high"]
+        shown = result.shown_of(i)
+        cols = ["constant", "unit", "value", f"{labels[shown]} low", f"{labels[shown]} high"]
+        if shown != "wald-t":
+            cols += ["Wald low", "Wald high"]
         if result.ci95_profile is not None:
             cols += ["profile low", "profile high"]
         if result.ci95_bootstrap is not None:
             cols += ["bootstrap low", "bootstrap high"]
         extra = [(label, ci) for label, ci in (("cluster", result.ci95_cluster),
-                                               ("HAC", result.ci95_hac)) if ci is not None]
+                                               ("HAC", result.ci95_hac))
+                 if ci is not None and label != labels[shown]]
         cols += [f"{label} {end}" for label, _ in extra for end in ("low", "high")]
         if published is not None:
             cols += ["published", "pub. low", "pub. high"]
         rows = [cols]
         for j, name in enumerate(result.param_names):
             row = [name, result.param_units[name], f"{result.theta[i, j]:.6g}",
-                   f"{result.ci95[i, j, 0]:.6g}", f"{result.ci95[i, j, 1]:.6g}"]
+                   f"{shown_ci[i, j, 0]:.6g}", f"{shown_ci[i, j, 1]:.6g}"]
+            if shown != "wald-t":
+                row += [f"{result.ci95[i, j, 0]:.6g}", f"{result.ci95[i, j, 1]:.6g}"]
             for ci in (result.ci95_profile, result.ci95_bootstrap, *(c for _, c in extra)):
                 if ci is not None:
                     row += [f"{ci[i, j, 0]:.6g}", f"{ci[i, j, 1]:.6g}"]
@@ -81,8 +91,13 @@ def _format_table(result, published=None) -> str:
         for r in rows:
             lines.append("  " + "  ".join(v.rjust(w) for v, w in zip(r, widths)))
         lines.append("")
-    lines.append(f"95% low/high: Wald intervals with Student-t (n − {result.theta.shape[1]} dof), "
-                 "as Excel reports them.")
+    kinds = {result.shown_of(i) for i in range(len(result.muscles))}
+    wald = f"Wald intervals with Student-t (n − {result.theta.shape[1]} dof), as Excel reports them"
+    if "wald-t" in kinds or not kinds:
+        lines.append(f"95% low/high: {wald}.")
+    if kinds - {"wald-t"}:
+        lines.append(f"Wald low/high: {wald}; too narrow where the residual is correlated, "
+                     "so a muscle whose residual is shows the interval that holds first.")
     if result.ci95_profile is not None:
         lines.append("profile: profile-likelihood (profile-t) intervals.")
     if result.ci95_bootstrap is not None:

@@ -193,3 +193,61 @@ def test_table_names_the_interval_and_why(ar1_fit):
     assert "cluster low" in first and "HAC high" in first
     assert "  intervals: residual lag-1 autocorrelation" in first
     assert "cluster: cluster-robust (CR3 by curve" in table
+
+
+def _sarosi_bench(tmp_path, phi):
+    """A virtual Sárosi bench file with 2 N of noise, AR(1) with ``phi`` inside every curve
+    (0: white)."""
+    from pamid._data._curves import find_curves
+
+    protocol = pamid.SarosiProtocol(noise_sd_N=0.0, force_resolution_N=0.0,
+                                    length_resolution_mm=0.0)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(8), table_3_1(), protocol)
+    curve = find_curves(frame).curve
+    frame["force_N"] += pamid.engine.ar1_noise(jax.random.key(9), curve, 1, 2.0, phi)[0]
+    return _bench(frame, tmp_path)
+
+
+def test_correlated_residual_shows_the_cluster_interval_by_default(tmp_path):
+    """Issue 32, item 11: with the default intervals, a muscle whose residual is correlated
+    shows the cluster interval (the JSON's ci95 and se, the table's first columns) and
+    says so; Wald's stays in the JSON as ci95_wald and se_wald."""
+    from pamid._cli import _format_table
+
+    result = fit_least_squares(_sarosi_bench(tmp_path, 0.8), "sarosi")
+    assert result.interval_of == ("cluster",) and result.interval_shown == "cluster"
+    payload = json.loads(fit_json(result))
+    assert payload == json.loads(json.dumps(result.to_dict()))
+    assert payload["interval"] == "cluster"
+    muscle = payload["muscles"][0]
+    assert muscle["interval"] == "cluster" and "shown as ci95" in muscle["interval_note"]
+    for j, name in enumerate(result.param_names):
+        entry = muscle["params"][name]
+        assert entry["ci95"] == entry["ci95_cluster"] == result.ci95_cluster[0, j].tolist()
+        assert entry["ci95_wald"] == result.ci95[0, j].tolist()
+        assert entry["se_wald"] == result.se[0, j] and entry["se"] == result.se_cluster[0, j]
+        assert entry["se"] > entry["se_wald"]  # φ = 0.8: Wald's is far too narrow
+    table = _format_table(result)
+    assert table.index("cluster low") < table.index("cluster high") < table.index("Wald low")
+    assert "Wald low/high: Wald intervals" in table
+    # Asked for Wald's: shown, with the note that it is too narrow.
+    wald = fit_least_squares(_sarosi_bench(tmp_path, 0.8), "sarosi", show="wald")
+    assert wald.interval_of == ("wald-t",) and wald.ci95_cluster is None
+    entry = wald.to_dict()["muscles"][0]
+    assert entry["params"]["a1"]["ci95"] == entry["params"]["a1"]["ci95_wald"]
+    assert "too narrow" in entry["interval_note"]
+
+
+def test_white_residual_shows_wald_by_default(tmp_path):
+    result = fit_least_squares(_sarosi_bench(tmp_path, 0.0), "sarosi")
+    assert result.interval_of == ("wald-t",) and result.ci95_cluster is None
+    payload = json.loads(fit_json(result))
+    assert payload["interval"] == payload["interval_shown"] == "wald-t"
+    muscle = payload["muscles"][0]
+    assert muscle["interval"] == "wald-t" and muscle["interval_note"] is None
+    assert muscle["params"]["a1"]["ci95"] == muscle["params"]["a1"]["ci95_wald"]
+    assert "ci95_cluster" not in muscle["params"]["a1"]
+    from pamid._cli import _format_table
+
+    table = _format_table(result)
+    assert "95% low" in table and "Wald low" not in table and "cluster low" not in table

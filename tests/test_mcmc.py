@@ -392,14 +392,17 @@ def test_to_dict_has_the_least_squares_shape_and_more(sarosi_post):
     ls = sarosi_post.ls.to_dict()
     # Which least-squares interval to read under correlated residuals: the posterior's
     # own "interval" key says what its intervals are instead.
-    ls_only = {"interval_shown", "interval_groups", "residual_lag1", "interval_note"}
+    # Which least-squares interval each muscle shows, and Wald's beside it: the posterior's
+    # ci95 is its own (equal-tailed), the least-squares ones are under "ls".
+    ls_only = {"interval_shown", "interval_groups", "residual_lag1", "interval_note",
+               "interval"}
     assert set(ls) - ls_only <= set(d)
     assert d["model"] == "sarosi" and d["units"] == ls["units"]
     m, m_ls = d["muscles"][0], ls["muscles"][0]
     assert set(m_ls) - ls_only <= set(m)
     assert list(m["params"]) == list(SAROSI.param_names)
     for name, entry in m["params"].items():
-        assert set(m_ls["params"][name]) <= set(entry)
+        assert set(m_ls["params"][name]) - {"ci95_wald", "se_wald"} <= set(entry)
         assert {"hdi95", "r_hat", "ess_bulk", "ess_tail", "ls"} <= set(entry)
         assert entry["ci95"][0] < entry["value"] < entry["ci95"][1]
         assert entry["unit"] == SAROSI.param_units[name]

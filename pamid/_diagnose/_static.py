@@ -235,7 +235,8 @@ class StaticProblem:
         # The baseline: the model alone, with its statistics, so that a fit the data cannot
         # determine is known (and said why) before any candidate is refitted on top of it.
         self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
-                                          muscles=tuple(bench.muscles), bounds=bounds)
+                                          muscles=tuple(bench.muscles), bounds=bounds,
+                                          show="wald")  # its residual is what is used
         check_baseline(bench, spec, self.baseline)  # before anything is built on it
         self.theta0 = self.baseline.theta
         # A constant the baseline holds on a bound stays there in every refit (its gradient

@@ -68,6 +68,27 @@ class FitResult:
     interval_notes: tuple[str | None, ...] = ()  # per muscle: which interval holds, why
     interval_shown: str = "wald-t"
     interval_groups: dict | None = None  # {"cluster": "curve", "hac": "trial"}
+    # Per muscle, the interval shown (the JSON's "ci95", the table's first columns):
+    # "wald-t", or "cluster"/"hac" where the residual is correlated (_correlated.for_fit).
+    # ``ci95`` and ``se`` above are always Wald's.
+    interval_of: tuple[str, ...] = ()
+    se_cluster: np.ndarray | None = None  # standard errors of the cluster interval (M, p)
+    se_hac: np.ndarray | None = None
+
+    def shown_of(self, i: int) -> str:
+        """The kind of interval shown for muscle ``i``: "wald-t", "cluster" or "hac"."""
+        return self.interval_of[i] if i < len(self.interval_of) else "wald-t"
+
+    def shown_intervals(self) -> tuple[np.ndarray, np.ndarray]:
+        """The shown interval of every muscle and its standard errors: ``(ci (M, p, 2),
+        se (M, p))``, Wald's where :meth:`shown_of` says "wald-t"."""
+        ci, se = self.ci95.copy(), self.se.copy()
+        for kind, c, s in (("cluster", self.ci95_cluster, self.se_cluster),
+                           ("hac", self.ci95_hac, self.se_hac)):
+            rows = [i for i in range(self.n_muscles) if self.shown_of(i) == kind]
+            if rows and c is not None:
+                ci[rows], se[rows] = c[rows], s[rows]
+        return ci, se
 
     def status_of(self, i: int) -> str:
         """Muscle ``i``'s result code (:data:`STATUSES`)."""
@@ -106,7 +127,10 @@ def json_head(result: FitResult) -> dict:
         "equation": result.spec.source,
         "units": dict(result.spec.units),
         "solver": result.solver,
-        "interval": "wald-t",
+        # What each muscle's "ci95" is: one kind for all, else "per muscle" (its "interval").
+        "interval": (kinds.pop() if len(kinds := {result.shown_of(i) for i in
+                                                    range(result.n_muscles)} or {"wald-t"}) == 1
+                     else "per muscle"),
         "interval_shown": result.interval_shown,
         "interval_groups": dict(result.interval_groups or {}),
     }
@@ -132,10 +156,14 @@ def fit_columns(result: FitResult) -> tuple[list[tuple[str, object]], tuple[str,
                ("bool", np.asarray(result.converged, dtype=bool).tolist()),
                ("text", [result.status_of(i) for i in range(m)]),
                ("text", [result.message(i) for i in range(m)]),
-               ("float", lag1), ("text", notes)]
+               ("float", lag1), ("text", [result.shown_of(i) for i in range(m)]),
+               ("text", notes)]
+    ci, se = result.shown_intervals()
     for j in range(len(result.param_names)):
-        columns += [("float", result.theta[:, j]), ("float", result.ci95[:, j, 0]),
-                    ("float", result.ci95[:, j, 1]), ("float", result.se[:, j])]
+        columns += [("float", result.theta[:, j]), ("float", ci[:, j, 0]),
+                    ("float", ci[:, j, 1]), ("float", se[:, j]),
+                    ("float", result.ci95[:, j, 0]), ("float", result.ci95[:, j, 1]),
+                    ("float", result.se[:, j])]
         for _, arr in optional:
             columns += [("float", arr[:, j, 0]), ("float", arr[:, j, 1])]
     return columns, tuple(key for key, _ in optional)
@@ -147,11 +175,13 @@ def muscle_entry(result: FitResult, values, optional: tuple[str, ...]) -> dict:
     head = {"muscle": next(values), "n": next(values), "rmse_N": next(values),
             "r": next(values), "converged": next(values), "status": next(values),
             "message": next(values), "residual_lag1": next(values),
-            "interval_note": next(values)}
+            "interval": next(values), "interval_note": next(values)}
     params = {}
     for name in result.param_names:
+        # "ci95" and "se": the interval shown (the muscle's "interval"); Wald's always too.
         entry = {"value": next(values), "ci95": [next(values), next(values)],
-                 "se": next(values), "unit": result.param_units[name]}
+                 "se": next(values), "ci95_wald": [next(values), next(values)],
+                 "se_wald": next(values), "unit": result.param_units[name]}
         for key in optional:
             entry[key] = [next(values), next(values)]
         params[name] = entry
@@ -392,6 +422,7 @@ def fit_least_squares(
     level: float = 0.95,
     muscles: tuple[str | None, ...] | None = None,
     starts: int | None = None,
+    show: str = "holds",
 ) -> FitResult:
     """Fit a static force model to every muscle of ``data`` in one batched solve.
 
@@ -421,6 +452,11 @@ def fit_least_squares(
             (``_least_squares.DEFAULT_STARTS``, one, by default); muscles that one start
             did not serve (not converged, or constants outside their bounds) get a second
             try from ``RETRY_STARTS`` starts.
+        show: which interval a muscle shows (``interval_of``; the JSON's ``ci95``, the
+            table's first columns): "holds" (default), where its residual is correlated
+            within curves, the cluster interval (computed then even if ``intervals`` does
+            not ask for it; HAC where only that is asked for), else Wald's; "wald":
+            Wald's always. ``FitResult.ci95`` is Wald's either way.
     """
     frame = data.frame if isinstance(data, BenchData) else None
     spec = get_model(model, frame)
@@ -435,10 +471,10 @@ def fit_least_squares(
         # consecutive samples of each muscle, which crosses a curve boundary once a curve.
         grouped = bool({"bootstrap", "cluster", "hac"} & set(intervals))
         trials = _correlated.trial_groups(data) if grouped else None
-        data = bench_to_fit_data(data, spec, curves=grouped)
+        bench, data = data, bench_to_fit_data(data, spec, curves=grouped)
     else:
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
-        trials = None
+        trials = bench = None
 
     lanes = fit_lanes(spec, data, solver=solver, bounds=bounds, starts=starts,
                       with_statistics=True)
@@ -472,7 +508,11 @@ def fit_least_squares(
 
     with np.errstate(invalid="ignore"):  # NaN where the data do not determine a constant
         covariance = s2[:, None, None] * jtj_inv
-    correlated = _correlated.for_fit(spec, data, theta, intervals, trials, level, lag1=lag1)
+    # Data packed without their curves get them only where a cluster interval is computed.
+    curves_of = (None if bench is None or {"bootstrap", "cluster", "hac"} & set(intervals) else
+                 lambda: _correlated.trial_groups(bench, of="curve"))
+    correlated = _correlated.for_fit(spec, data, theta, intervals, trials, level, lag1=lag1,
+                                     show=show, curves_of=curves_of)
     return FitResult(
         model=spec.name,
         param_names=spec.param_names,

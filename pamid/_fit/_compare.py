@@ -282,7 +282,8 @@ def fit_with_folds(bench: BenchData, spec: ModelSpec, plan: FoldPlan, *,
     lanes = fold_lanes(data, plan)
     names = tuple(mu if bench.has_muscle_column else None for mu in bench.muscles)
     lane_fit = fit_least_squares(lanes, spec, solver=solver, intervals=("wald",), bounds=bounds,
-                                 muscles=tuple(np.repeat(np.array(names, dtype=object), reps)))
+                                 muscles=tuple(np.repeat(np.array(names, dtype=object), reps)),
+                                 show="wald")  # ranked by errors: no interval is shown
     first = np.arange(m) * reps
     fit = _lanes_of(lane_fit, first, names)
     p = spec.n_params

@@ -339,29 +339,51 @@ LAG1_NOTE = 0.1
 LAG1_P = 0.01
 
 
-def trial_groups(bench) -> np.ndarray:
+def trial_groups(bench, of: str = "trial") -> np.ndarray:
     """The trial of every row of a loaded bench file, packed like its batch (M, n_max),
-    −1 on padding: ``bench.curves.trial`` by :func:`~pamid._fit._batch.pack_rows`."""
+    −1 on padding: ``bench.curves.trial`` by :func:`~pamid._fit._batch.pack_rows`.
+    ``of="curve"``: the curve of every row (``bench.curves.curve``) instead."""
     import pandas as pd
 
     from ._batch import pack_rows
 
     codes = pd.factorize(bench.frame["muscle"], sort=False)[0]
-    packed = pack_rows(codes, (), np.zeros(len(codes)), bench.curves.trial,
+    packed = pack_rows(codes, (), np.zeros(len(codes)), getattr(bench.curves, of),
                        n_muscles=len(bench.muscles))
     return np.asarray(packed.curve)
 
 
 def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
-            level: float = 0.95, lag1=None) -> dict:
+            level: float = 0.95, lag1=None, show: str = "holds", curves_of=None) -> dict:
     """What :func:`pamid.fit_least_squares` adds to its result: the residual's lag-1
     autocorrelation (always; within curves where ``data`` carries them), the "cluster"
     interval (CR3 by curve, t on G − 1) and the "hac" interval (Newey–West within
     ``trials``, default within curves) where asked for, and per muscle a note on which
     interval holds and why. ``lag1``: the sums of :func:`lag1_sums` within ``data.curve``
     where the caller has them already (the fit's statistics program computes them: no
-    second pass over the samples)."""
+    second pass over the samples).
+
+    ``show``: "holds" (default): where a muscle's residual is correlated (:data:`LAG1_NOTE`,
+    :data:`LAG1_P`) its shown interval (``interval_of``) is one that holds under correlated
+    noise: the cluster interval, computed here where neither it nor HAC was asked for
+    (``curves_of``: a function giving the packed curve of every sample, for data packed
+    without them), or HAC where only that was asked for; a muscle of fewer than two curves
+    keeps Wald's, and its note says so. "wald": Wald's for every muscle."""
+    if show not in ("holds", "wald"):
+        raise ValueError(f"show must be 'holds' or 'wald', not {show!r}")
     wanted = [k for k in ("cluster", "hac") if k in intervals]
+    if show == "holds" and not wanted:
+        # The residual's correlation first: the cluster interval is computed only where
+        # some muscle needs it (its Jacobian is a program and a pass of its own).
+        if lag1 is not None:
+            rho, p_value, _ = lag1_from_sums(*lag1)
+        else:
+            rho, p_value, _ = lag1_autocorrelation(batch_residuals(spec, theta, data),
+                                                   np.asarray(data.curve))
+        if np.any((rho >= LAG1_NOTE) & (p_value < LAG1_P)):
+            wanted = ["cluster"]
+            if curves_of is not None:
+                data = data._replace(curve=jnp.asarray(curves_of()))
     # The curves to the host only where they are used (10,000 muscles of 300 rows: 24 MB).
     curves = np.asarray(data.curve) if wanted or lag1 is None else None
     if wanted:
@@ -378,31 +400,39 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
         c = correlated_intervals(spec, data, theta, "cluster", curves, kind="CR3",
                                  level=level, jac_r=jac_r)
         out["ci95_cluster"] = np.stack([c["lower"], c["upper"]], axis=-1)
+        out["se_cluster"] = np.asarray(c["se"])
         g = out["cluster_groups"] = c["n_groups"]
     if "hac" in wanted:
         h = correlated_intervals(spec, data, theta, "hac",
                                  curves if trials is None else trials, level=level,
                                  jac_r=jac_r)
         out["ci95_hac"] = np.stack([h["lower"], h["upper"]], axis=-1)
+        out["se_hac"] = np.asarray(h["se"])
         bw = out["hac_bandwidth"] = h["bandwidth"]
     flagged = (rho >= LAG1_NOTE) & (p_value < LAG1_P)
     notes = [None] * m
+    interval_of = ["wald-t"] * m
     for i in np.flatnonzero(flagged).tolist():  # only the muscles with something to say
         head = (f"residual lag-1 autocorrelation {rho[i]:.2f} between consecutive samples: "
                 "the Wald interval assumes independent noise and is too narrow; ")
         if g is not None and g[i] >= 2:
             few = (f" (only {int(g[i])} curves; pamid's coverage study had 10–24)"
                    if g[i] < 10 else "")
+            shown = ", shown as ci95" if show == "holds" else ""
             notes[i] = (head + f"ci95_cluster (CR3 by curve, t on {int(g[i]) - 1} dof) "
-                         f"holds under correlated noise{few}")
+                         f"holds under correlated noise{few}{shown}")
+            interval_of[i] = "cluster" if show == "holds" else "wald-t"
         elif bw is not None:
-            notes[i] = (head + f"ci95_hac (Newey–West, bandwidth {bw[i]:.0f} rows) allows "
-                         "for it but ran 85–95 % in pamid's coverage study; ask for the "
-                         "cluster interval (--intervals wald,profile,cluster) where the data "
-                         "have curves")
+            shown = " (shown as ci95)" if show == "holds" else ""
+            notes[i] = (head + f"ci95_hac (Newey–West, bandwidth {bw[i]:.0f} rows){shown} "
+                         "allows for it but ran 85–95 % in pamid's coverage study; ask for "
+                         "the cluster interval (--intervals wald,profile,cluster) where the "
+                         "data have curves")
+            interval_of[i] = "hac" if show == "holds" else "wald-t"
         elif g is not None:
             notes[i] = (head + f"the cluster interval needs at least two curves (this "
-                         f"muscle has {int(g[i])}), so none that holds can be given")
+                         f"muscle has {int(g[i])}), so none that holds can be given; "
+                         "Wald's is shown")
         else:
             notes[i] = (head + "ask for the cluster interval (--intervals wald,profile,cluster), "
                          "which holds under correlated noise")
@@ -410,9 +440,10 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
     groups_of = {"cluster": "curve", "hac": "curve" if trials is None else "trial"}
     out["interval_groups"] = {k: groups_of[k] for k in wanted}
     shown = "wald-t"
-    if np.any(flagged):
+    if np.any(flagged) and show == "holds":
         shown = "cluster" if "cluster" in wanted else ("hac" if "hac" in wanted else shown)
     out["interval_shown"] = shown
+    out["interval_of"] = tuple(interval_of)
     return out
 
 
