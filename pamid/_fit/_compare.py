@@ -32,7 +32,6 @@ import functools
 from collections.abc import Callable, Sequence
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
@@ -112,12 +111,11 @@ def fold_lanes(data: FitData, plan: FoldPlan) -> FitData:
     j = np.arange(reps)[None, :, None] - 1  # (1, reps, 1): −1 is the fit to all data
     keep = (plan.fold[:, None, :] != j) | (j < 0)
     w = np.asarray(data.w)[:, None, :] * keep
-    return FitData(
-        x=tuple(jnp.repeat(xi, reps, axis=0) for xi in data.x),
-        y=jnp.repeat(data.y, reps, axis=0),
-        w=jnp.asarray(w.reshape(m * reps, n)),
-        curve=jnp.repeat(data.curve, reps, axis=0),
-    )
+    # In NumPy, then onto the device: each jnp operation here was a compiled program of its
+    # own, per shape, in every new process.
+    rep = lambda a: jax.device_put(np.repeat(np.asarray(a), reps, axis=0))  # noqa: E731
+    return FitData(x=tuple(rep(xi) for xi in data.x), y=rep(data.y),
+                   w=jax.device_put(w.reshape(m * reps, n)), curve=rep(data.curve))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -268,7 +266,7 @@ def _vmapped(predict: Callable) -> Callable:
 def predict_lanes(spec: ModelSpec, theta, x) -> np.ndarray:
     """The model of every lane at its own constants, in chunks of lanes."""
     name = builtin_key(spec)
-    return map_lanes(_vmapped(spec.predict), jnp.asarray(theta, dtype=jnp.float64), x,
+    return map_lanes(_vmapped(spec.predict), np.asarray(theta, dtype=np.float64), x,
                      cache_key=None if name is None else ("predict", *name))
 
 

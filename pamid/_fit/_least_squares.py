@@ -443,14 +443,15 @@ def _model_jacobian(spec, theta, x):
 
 
 def _repeat_lanes(data: FitData, k: int) -> FitData:
-    """Every lane of ``data`` ``k`` times in a row (lane i → lanes i·k … i·k + k − 1)."""
-    rep = lambda a: jnp.repeat(jnp.asarray(a), k, axis=0)  # noqa: E731
+    """Every lane of ``data`` ``k`` times in a row (lane i → lanes i·k … i·k + k − 1). In
+    NumPy, then onto the device (as jnp operations, each a compiled program per shape)."""
+    rep = lambda a: jax.device_put(np.repeat(np.asarray(a), k, axis=0))  # noqa: E731
     return data._replace(x=tuple(rep(a) for a in data.x), y=rep(data.y), w=rep(data.w),
                          curve=rep(data.curve))
 
 
 def _take_lanes(data: FitData, idx) -> FitData:
-    take = lambda a: jnp.asarray(a)[idx]  # noqa: E731
+    take = lambda a: jax.device_put(np.asarray(a)[np.asarray(idx)])  # noqa: E731
     return data._replace(x=tuple(take(a) for a in data.x), y=take(data.y), w=take(data.w),
                          curve=take(data.curve))
 
@@ -513,7 +514,10 @@ def start_candidates(spec: ModelSpec, data: FitData, bounds=None):
             _CANDIDATES[key] = jax.jit(projected_candidates(spec.predict, linear, trials,
                                                             lower, upper))
     fn = _CANDIDATES[key]
-    return None if fn is None else fn(data.x, data.y, data.w)
+    if fn is None:
+        return None
+    return map_lanes(fn, data.x, data.y, data.w,
+                     cache_key=_key("candidates_in_bounds", spec, key[1], key[2]))
 
 
 def bounds_arrays(spec: ModelSpec, bounds):
