@@ -24,9 +24,10 @@ MISS = re.compile(r"PERSISTENT COMPILATION CACHE MISS for '([^']+)'")
 
 #: Programs a command compiles on a file of a size class never seen (one muscle): the
 #: budget that keeps "few programs per command" from creeping back. Measured 2026-11-27
-#: with an empty cache: fit 4, diagnose 10, compare 64 (7 laws, each on all data and its
-#: folds as lanes of one call).
-BUDGET = {"fit": 6, "diagnose": 14, "compare": 80}
+#: with an empty cache on a file like the bundled one (its residual correlated: the
+#: cluster interval is computed too): fit 6, diagnose 10, compare 47 (7 laws, each on all
+#: data and its folds as lanes of one call); 285 for compare before this budget.
+BUDGET = {"fit": 8, "diagnose": 14, "compare": 60}
 
 
 def test_size_classes():
