@@ -224,7 +224,7 @@ def run_notebook():
 #: while the other had finished. Run first, they leave the short files for the end.
 SLOWEST_FIRST = (
     "test_close_the_loop_aarl.py", "test_notebooks.py", "test_mcmc.py",
-    "test_diagnose_protocols.py", "test_fit.py", "test_diagnose.py",
+    "test_diagnose_protocols.py", "test_compile_budget.py", "test_fit.py", "test_diagnose.py",
     "test_diagnose_effects.py", "test_sharding.py", "test_cli_failures.py",
     "test_real_files.py", "test_cli.py", "test_fit_status.py", "test_force_model.py",
     "test_published_models.py", "test_joint_fit.py", "test_compare.py",
