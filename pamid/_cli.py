@@ -45,6 +45,8 @@ def _format_table(result, published=None) -> str:
     """Constants with the 95% interval each muscle shows (Wald's, or the cluster interval
     where its residual is correlated: ``FitResult.shown_of``), then Wald's where another is
     shown, and profile/bootstrap/cluster/HAC/published where present."""
+    import numpy as np
+
     lines = []
     shown_ci, _ = result.shown_intervals()
     labels = {"wald-t": "95%", "cluster": "cluster", "hac": "HAC"}
@@ -68,9 +70,10 @@ def _format_table(result, published=None) -> str:
             cols += ["profile low", "profile high"]
         if result.ci95_bootstrap is not None:
             cols += ["bootstrap low", "bootstrap high"]
+        # (an interval computed for other muscles only, not this one: not a column of NaN)
         extra = [(label, ci) for label, ci in (("cluster", result.ci95_cluster),
                                                ("HAC", result.ci95_hac))
-                 if ci is not None and label != labels[shown]]
+                 if ci is not None and label != labels[shown] and not np.all(np.isnan(ci[i]))]
         cols += [f"{label} {end}" for label, _ in extra for end in ("low", "high")]
         if published is not None:
             cols += ["published", "pub. low", "pub. high"]

@@ -510,7 +510,8 @@ def fit_least_squares(
         covariance = s2[:, None, None] * jtj_inv
     # Data packed without their curves get them only where a cluster interval is computed.
     curves_of = (None if bench is None or {"bootstrap", "cluster", "hac"} & set(intervals) else
-                 lambda: _correlated.trial_groups(bench, of="curve"))
+                 lambda muscles, width: _correlated.trial_groups(bench, of="curve",
+                                                                 muscles=muscles, width=width))
     correlated = _correlated.for_fit(spec, data, theta, intervals, trials, level, lag1=lag1,
                                      show=show, curves_of=curves_of)
     return FitResult(

@@ -339,18 +339,41 @@ LAG1_NOTE = 0.1
 LAG1_P = 0.01
 
 
-def trial_groups(bench, of: str = "trial") -> np.ndarray:
+def trial_groups(bench, of: str = "trial", muscles=None, width: int | None = None
+                 ) -> np.ndarray:
     """The trial of every row of a loaded bench file, packed like its batch (M, n_max),
     −1 on padding: ``bench.curves.trial`` by :func:`~pamid._fit._batch.pack_rows`.
-    ``of="curve"``: the curve of every row (``bench.curves.curve``) instead."""
+    ``of="curve"``: the curve of every row (``bench.curves.curve``) instead.
+
+    ``muscles``: only these muscles (indices, in this order), their curves found on their
+    own rows (the file's curves are not found for the others, unless found already), in
+    ``width`` columns (the batch's)."""
     import pandas as pd
 
     from ._batch import pack_rows
 
     codes = pd.factorize(bench.frame["muscle"], sort=False)[0]
-    packed = pack_rows(codes, (), np.zeros(len(codes)), getattr(bench.curves, of),
-                       n_muscles=len(bench.muscles))
-    return np.asarray(packed.curve)
+    if muscles is None:
+        packed = pack_rows(codes, (), np.zeros(len(codes)), getattr(bench.curves, of),
+                           n_muscles=len(bench.muscles))
+        return np.asarray(packed.curve)
+    from .._data._curves import find_curves
+
+    muscles = np.asarray(muscles, dtype=np.int64)
+    rows = np.flatnonzero(np.isin(codes, muscles))
+    if "curves" in bench.__dict__:  # found already (a cached property): reuse them
+        ids = np.asarray(getattr(bench.curves, of))[rows]
+    else:
+        ids = np.asarray(getattr(find_curves(bench.frame.iloc[rows]), of))
+    new = np.searchsorted(np.sort(muscles), codes[rows])  # the muscles' order below
+    order_of = np.argsort(np.argsort(muscles))
+    packed = np.asarray(pack_rows(order_of[new], (), np.zeros(len(rows)), ids,
+                                  n_muscles=len(muscles)).curve)
+    width = packed.shape[1] if width is None else int(width)
+    out = np.full((len(muscles), width), -1, dtype=np.int64)
+    k = min(width, packed.shape[1])
+    out[:, :k] = packed[:, :k]
+    return out
 
 
 def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
@@ -366,37 +389,58 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
     ``show``: "holds" (default): where a muscle's residual is correlated (:data:`LAG1_NOTE`,
     :data:`LAG1_P`) its shown interval (``interval_of``) is one that holds under correlated
     noise: the cluster interval, computed here where neither it nor HAC was asked for
-    (``curves_of``: a function giving the packed curve of every sample, for data packed
-    without them), or HAC where only that was asked for; a muscle of fewer than two curves
-    keeps Wald's, and its note says so. "wald": Wald's for every muscle."""
+    (``curves_of(muscles, width)``: the packed curve of every sample of those muscles, for
+    data packed without them; computed on those muscles' lanes alone), or HAC where only
+    that was asked for; a muscle of fewer than two curves keeps Wald's, and its note says
+    so. "wald": Wald's for every muscle."""
     if show not in ("holds", "wald"):
         raise ValueError(f"show must be 'holds' or 'wald', not {show!r}")
     wanted = [k for k in ("cluster", "hac") if k in intervals]
+    need = None  # the muscles whose shown interval is the cluster one though none was asked
     if show == "holds" and not wanted:
-        # The residual's correlation first: the cluster interval is computed only where
-        # some muscle needs it (its Jacobian is a program and a pass of its own).
+        # The residual's correlation first: the cluster interval is computed only for the
+        # muscles that need it, on their lanes alone (10,000 white-noise muscles flag ~40 by
+        # chance: their curves and Jacobians, not the file's, 3.3 s and 1.5 s of 12 s).
         if lag1 is not None:
             rho, p_value, _ = lag1_from_sums(*lag1)
         else:
             rho, p_value, _ = lag1_autocorrelation(batch_residuals(spec, theta, data),
                                                    np.asarray(data.curve))
-        if np.any((rho >= LAG1_NOTE) & (p_value < LAG1_P)):
+        need = np.flatnonzero((rho >= LAG1_NOTE) & (p_value < LAG1_P))
+        if len(need):
             wanted = ["cluster"]
-            if curves_of is not None:
-                data = data._replace(curve=jnp.asarray(curves_of()))
-    # The curves to the host only where they are used (10,000 muscles of 300 rows: 24 MB).
-    curves = np.asarray(data.curve) if wanted or lag1 is None else None
-    if wanted:
-        jac_r = jacobian_residuals(spec, theta, data)
-    if lag1 is not None:
-        rho, p_value, _ = lag1_from_sums(*lag1)
-    else:
-        r = jac_r[1] if wanted else batch_residuals(spec, theta, data)
-        rho, p_value, _ = lag1_autocorrelation(r, curves)
-    out = {"residual_lag1": rho, "residual_lag1_p": p_value}
+    out = {}
     m = theta.shape[0]
     g = bw = None
-    if "cluster" in wanted:
+    if need is not None:
+        out.update(residual_lag1=rho, residual_lag1_p=p_value)
+        if len(need):
+            take = lambda a: jax.device_put(np.asarray(a)[need])  # noqa: E731
+            n_cols = data.y.shape[1]
+            curves = (curves_of(need, n_cols) if curves_of is not None
+                      else np.asarray(data.curve)[need])
+            lanes = FitData(x=tuple(take(a) for a in data.x), y=take(data.y), w=take(data.w),
+                            curve=jax.device_put(curves))
+            c = correlated_intervals(spec, lanes, theta[need], "cluster", curves, kind="CR3",
+                                     level=level)
+            p = theta.shape[1]
+            ci, se_c = np.full((m, p, 2), np.nan), np.full((m, p), np.nan)
+            g = np.zeros(m, dtype=np.asarray(c["n_groups"]).dtype)
+            ci[need] = np.stack([c["lower"], c["upper"]], axis=-1)
+            se_c[need], g[need] = np.asarray(c["se"]), np.asarray(c["n_groups"])
+            out.update(ci95_cluster=ci, se_cluster=se_c, cluster_groups=g)
+    else:
+        # The curves to the host only where used (10,000 muscles of 300 rows: 24 MB).
+        curves = np.asarray(data.curve) if wanted or lag1 is None else None
+        if wanted:
+            jac_r = jacobian_residuals(spec, theta, data)
+        if lag1 is not None:
+            rho, p_value, _ = lag1_from_sums(*lag1)
+        else:
+            r = jac_r[1] if wanted else batch_residuals(spec, theta, data)
+            rho, p_value, _ = lag1_autocorrelation(r, curves)
+        out.update(residual_lag1=rho, residual_lag1_p=p_value)
+    if "cluster" in wanted and need is None:
         c = correlated_intervals(spec, data, theta, "cluster", curves, kind="CR3",
                                  level=level, jac_r=jac_r)
         out["ci95_cluster"] = np.stack([c["lower"], c["upper"]], axis=-1)
