@@ -81,8 +81,8 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
     Padding repeats the muscle's first sample in ``x`` (so that the model stays finite
     there), has y = 0, weight 0 and curve −1. Every lane has :func:`padded_rows` of the
     largest muscle's row count (and the number of muscles): files of nearby lengths pack
-    to one shape, so that they share compiled programs. No loop over muscles: positions within a muscle by a cumulative
-    count, then one scatter per array.
+    to one shape, so that they share compiled programs. No loop over muscles: positions
+    within a muscle by a cumulative count, then one scatter per array.
     """
     codes = np.asarray(codes, dtype=np.int64)
     n = len(codes)
