@@ -286,13 +286,15 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
     size, host = call_layout(n, chunk, cpu, lane_size)
     if size == n:
         return jax.tree.map(np.asarray, fn(*arrays))
-    if size > n:  # one call of more lanes than given: the last one repeated, then dropped
-        part = jax.tree.map(lambda a: _lanes(np.asarray(a), 0, n, size), arrays)
+
+    def call(part):
         if device is None:
-            out = fn(*part)
-        else:
-            with jax.default_device(device):
-                out = fn(*part)
+            return fn(*part)
+        with jax.default_device(device):
+            return fn(*part)
+
+    if size > n:  # one call of more lanes than given: the last one repeated, then dropped
+        out = call(jax.tree.map(lambda a: _lanes(np.asarray(a), 0, n, size), arrays))
         return jax.tree.map(lambda a: np.asarray(a)[:n], out)
     starts = range(0, n, chunk)
 
@@ -304,12 +306,7 @@ def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
         # in either chunk; padding the last chunk by copying cost 1 ms of a 13 ms fit of
         # 1000 muscles.)
         first = min(start, n - chunk)
-        part = jax.tree.map(lambda a: a[first : first + chunk], arrays)
-        if device is None:
-            out = fn(*part)
-        else:
-            with jax.default_device(device):
-                out = fn(*part)
+        out = call(jax.tree.map(lambda a: a[first : first + chunk], arrays))
         return jax.tree.map(lambda a: np.asarray(a)[start - first :], out)
 
     if host:

@@ -59,7 +59,7 @@ import numpy as np
 
 from ._batch import FitData, map_lanes
 from ._intervals import t_critical, wald_interval
-from ._least_squares import _key, lag1_sums, residuals
+from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
 
 CLUSTER_KINDS = ("CR1", "CR2", "CR3")
@@ -365,9 +365,9 @@ def trial_groups(bench, of: str = "trial", muscles=None, width: int | None = Non
         ids = np.asarray(getattr(bench.curves, of))[rows]
     else:
         ids = np.asarray(getattr(find_curves(bench.frame.iloc[rows]), of))
-    new = np.searchsorted(np.sort(muscles), codes[rows])  # the muscles' order below
-    order_of = np.argsort(np.argsort(muscles))
-    packed = np.asarray(pack_rows(order_of[new], (), np.zeros(len(rows)), ids,
+    lane = np.full(len(bench.muscles), -1, dtype=np.int64)
+    lane[muscles] = np.arange(len(muscles))  # each muscle's lane, in the order given
+    packed = np.asarray(pack_rows(lane[codes[rows]], (), np.zeros(len(rows)), ids,
                                   n_muscles=len(muscles)).curve)
     width = packed.shape[1] if width is None else int(width)
     out = np.full((len(muscles), width), -1, dtype=np.int64)
@@ -415,12 +415,9 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
     if need is not None:
         out.update(residual_lag1=rho, residual_lag1_p=p_value)
         if len(need):
-            take = lambda a: jax.device_put(np.asarray(a)[need])  # noqa: E731
-            n_cols = data.y.shape[1]
-            curves = (curves_of(need, n_cols) if curves_of is not None
+            curves = (curves_of(need, data.y.shape[1]) if curves_of is not None
                       else np.asarray(data.curve)[need])
-            lanes = FitData(x=tuple(take(a) for a in data.x), y=take(data.y), w=take(data.w),
-                            curve=jax.device_put(curves))
+            lanes = _take_lanes(data, need)._replace(curve=jax.device_put(curves))
             c = correlated_intervals(spec, lanes, theta[need], "cluster", curves, kind="CR3",
                                      level=level)
             p = theta.shape[1]
