@@ -23,6 +23,7 @@ import pamid
 from pamid._cli import main
 from pamid._commands import failure
 from pamid._diagnose import _static
+from pamid._inference import numerical_rank
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -273,13 +274,14 @@ def _known_matrices():
 def test_numerical_rank_equals_the_svd_rank(name):
     a, rank = _known_matrices()[name]
     assert _svd_rank(a) == rank
-    assert int(_static.numerical_rank(jnp.asarray(a))) == rank
+    assert int(numerical_rank(jnp.asarray(a))) == rank
+    assert int(numerical_rank(a)) == rank  # NumPy in: the same criterion, no compile
 
 
 def test_numerical_rank_batched_like_the_lanes():
     mats = _known_matrices()
     stack = np.stack([mats[k][0] for k in ("full", "duplicate", "combination", "scaled")])
-    ranks = jax.jit(jax.vmap(_static.numerical_rank))(jnp.asarray(stack))
+    ranks = jax.jit(jax.vmap(numerical_rank))(jnp.asarray(stack))
     np.testing.assert_array_equal(np.asarray(ranks), [6, 5, 5, 6])
 
 

@@ -544,8 +544,11 @@ def sarosi_from_fit_json(fit: dict, muscle: int = 0) -> tuple[Sarosi, jnp.ndarra
     """Constants and standard errors of muscle ``muscle`` of a ``pamid fit --json`` object.
 
     Returns (:class:`pamid.Sarosi`, se of a1 … a6). The standard error is the JSON's ``se``,
-    or, where it is missing or null, the half width of ``ci95`` over 1.96.
+    or, where it is missing or null, the half width of ``ci95`` over the Student-t quantile
+    of a Wald interval with the muscle's n − 6 degrees of freedom (the normal quantile where
+    the entry has no ``n``; :func:`pamid._inference.t_critical`, pamid's one Wald routine).
     """
+    from .._inference import t_critical
     from .._models._sarosi import PARAM_NAMES
 
     if not isinstance(fit, dict):
@@ -574,6 +577,10 @@ def sarosi_from_fit_json(fit: dict, muscle: int = 0) -> tuple[Sarosi, jnp.ndarra
             raise ValueError(f"{where} is {what}; it must be a finite number")
         return float(value)
 
+    n = muscles[muscle].get("n") if isinstance(muscles[muscle], dict) else None
+    dof = (n - len(PARAM_NAMES) if isinstance(n, int) and not isinstance(n, bool)
+           and n > len(PARAM_NAMES) else math.inf)
+    t = float(t_critical(dof, 0.95))
     values, ses = [], []
     for name in PARAM_NAMES:
         entry = params[name]
@@ -581,7 +588,7 @@ def sarosi_from_fit_json(fit: dict, muscle: int = 0) -> tuple[Sarosi, jnp.ndarra
         if se is None:
             ci = entry.get("ci95")
             lo, hi = ci if isinstance(ci, (list, tuple)) and len(ci) == 2 else (None, None)
-            se = ((number(name, "ci95", hi) - number(name, "ci95", lo)) / (2 * 1.96)
+            se = ((number(name, "ci95", hi) - number(name, "ci95", lo)) / (2 * t)
                   if lo is not None and hi is not None else 0.0)
         values.append(number(name, "value", entry["value"]))
         se = number(name, "se", se)

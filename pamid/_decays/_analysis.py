@@ -114,7 +114,7 @@ import scipy.linalg
 
 from .._errors import BenchDataError
 from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
-from .._fit._intervals import t_critical, wald_interval
+from .._inference import covariance, t_critical, unscaled_covariance, wald_interval
 from .._io import json_ready as _plain
 from .._sim._oscillator import DampedOscillator, oscillator_response
 
@@ -465,12 +465,14 @@ def _gls(x: np.ndarray, y: np.ndarray, v: np.ndarray):
         chol = np.linalg.cholesky(v)
         xw = scipy.linalg.solve_triangular(chol, x, lower=True)
         yw = scipy.linalg.solve_triangular(chol, y, lower=True)
-        coef, *_ = np.linalg.lstsq(xw, yw, rcond=None)
-        r = yw - xw @ coef
-        s2 = float(r @ r) / dof
-        return coef, s2 * np.linalg.inv(xw.T @ xw), dof
-    except np.linalg.LinAlgError:  # a covariance or design too ill-conditioned to solve
+    except np.linalg.LinAlgError:  # V not positive definite
         return nothing
+    inv, _, full_rank = unscaled_covariance(xw)
+    if not full_rank:  # a design the rank criterion cannot resolve
+        return nothing
+    coef, *_ = np.linalg.lstsq(xw, yw, rcond=None)
+    r = yw - xw @ coef
+    return coef, float(r @ r) / dof * inv, dof
 
 
 def _travel_cov(a: np.ndarray) -> np.ndarray:
@@ -992,12 +994,7 @@ def fit_decay_trajectories(
         n = len(t)
         dof = n - n_par
         sse = float(np.sum(res[i] ** 2))
-        s2 = sse / dof if dof > 0 else math.nan
-        jtj = jac[i].T @ jac[i]
-        try:
-            cov_scaled = s2 * np.linalg.inv(jtj)
-        except np.linalg.LinAlgError:
-            cov_scaled = np.full((n_par, n_par), np.nan)
+        cov_scaled, _ = covariance(jac[i], sse, dof)  # NaN where J is rank-deficient
         cov = cov_scaled * np.outer(scale[i], scale[i])
         in_rad = units[i] ** _FIT_ANGLE_POWER  # back from the fit's unit (exact: 2^k)
         se = np.sqrt(np.maximum(np.diag(cov), 0.0)) * in_rad

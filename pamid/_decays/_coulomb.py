@@ -79,7 +79,7 @@ import numpy as np
 
 from .._effects._definitions import DECAY_EFFECTS as _EFFECT_DEFINITIONS
 from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
-from .._fit._intervals import wald_interval
+from .._inference import covariance, wald_interval
 from .._sim._oscillator import cos_sinc
 from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
 
@@ -527,11 +527,7 @@ def _params_and_intervals(theta, jw, scale, mask, sse, n, inertia):
     """Parameters with T_c, and Wald intervals of the unmasked ones (module docstring)."""
     n_par = int(mask.sum())
     dof = n - n_par
-    jm = jw[:, mask]
-    try:
-        cov_scaled = (sse / dof if dof > 0 else math.nan) * np.linalg.inv(jm.T @ jm)
-    except np.linalg.LinAlgError:
-        cov_scaled = np.full((n_par, n_par), np.nan)
+    cov_scaled, _ = covariance(np.asarray(jw)[:, mask], sse, dof)  # NaN where undetermined
     cov = np.zeros((len(theta), len(theta)))
     cov[np.ix_(mask, mask)] = cov_scaled * np.outer(scale[mask], scale[mask])
     params = dict(zip(FIT_NAMES, (float(v) for v in theta), strict=True))

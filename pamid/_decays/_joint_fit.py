@@ -23,7 +23,7 @@ with β the simulated joint angle released from (β0_i, β̇0_i) at t_0, and opt
 Every trial is fitted on its own (its own G as well), all trials in one vmapped, jit-
 compiled optimistix Gauss–Newton (or Levenberg–Marquardt) solve in float64, the
 parameters scaled to order one. Intervals are Wald, θ̂ ± t_{0.975, n−p}·se with
-se² = s²·diag((JᵀJ)⁻¹) and s² = SSE/(n − p) (:func:`pamid._fit._intervals.wald_interval`).
+se² = s²·diag((JᵀJ)⁻¹) and s² = SSE/(n − p) (:func:`pamid._inference.wald_interval`).
 The pooled G is the inverse-variance weighted mean of the converged trials' G (fixed
 effect), its interval Student-t with the summed residual dof.
 """
@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
-from .._fit._intervals import wald_interval
+from .._inference import standard_errors, wald_interval
 from .._sim._joint_sim import JointArm, arm_rhs, sealed_pressure_laws
 from .._sim._oscillator import rk4_scan
 
@@ -253,14 +253,7 @@ def fit_joint_decays(
     n_par = len(fit)
     dof = n_used - n_par
     sse = np.sum(res**2, axis=1)
-    s2 = np.where(dof > 0, sse / np.maximum(dof, 1), np.nan)
-    se = np.full_like(theta, np.nan)
-    for i in range(n_trials):
-        try:
-            cov = s2[i] * np.linalg.inv(jac[i].T @ jac[i])
-        except np.linalg.LinAlgError:
-            continue
-        se[i] = np.sqrt(np.maximum(np.diag(cov), 0.0)) * scale[i]
+    se = standard_errors(jac, sse, dof)[0] * scale  # NaN where a trial's J is rank-deficient
     ci = np.stack(wald_interval(theta, se, np.asarray(dof)[:, None], level), -1)
     converged = np.asarray(ok, bool)
 

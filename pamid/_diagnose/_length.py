@@ -33,7 +33,6 @@ import math
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from .._data._bench import BenchData
 from .._errors import BenchDataError
@@ -41,6 +40,7 @@ from .._fit._api import fit_least_squares
 from .._fit._batch import FitData
 from .._fit._compare import FoldPlan, fit_with_folds, fold_plan, predict_lanes
 from .._fit._spec import ModelSpec, get_model
+from .._inference import residual_variance, unscaled_covariance, wald_interval
 
 #: Options whose CV RMSE is within this fraction of the lowest are tied; of tied options the
 #: one of lowest BIC is chosen (the fewest constants, unless more fit much better).
@@ -236,7 +236,8 @@ class _Pooled:
     resid_all: np.ndarray  # (N,) residual of the fit to all rows
 
 
-def _pooled_fit(spec: ModelSpec, x, y, curve, fold, muscle, k_folds: int, m: int) -> _Pooled:
+def _pooled_fit(spec: ModelSpec, x, y, curve, fold, muscle, k_folds: int, m: int,
+                level: float) -> _Pooled:
     n = len(y)
     masks = [np.ones(n)] + [(fold != j).astype(float) for j in range(k_folds)] + [
         (muscle != i).astype(float) for i in range(m)]
@@ -250,7 +251,8 @@ def _pooled_fit(spec: ModelSpec, x, y, curve, fold, muscle, k_folds: int, m: int
         curve=jnp.asarray(np.broadcast_to(curve, (lanes, n))),
     )
     solver = "gauss-newton" if spec.fast_path is not None else "levenberg-marquardt"
-    fit = fit_least_squares(data, spec, solver=solver, intervals=("wald", "cluster"))
+    fit = fit_least_squares(data, spec, solver=solver, intervals=("wald", "cluster"),
+                            level=level)
     pred = np.asarray(predict_lanes(spec, fit.theta, data.x))
     rows = np.arange(n)
     held = pred[1 + fold, rows]
@@ -273,7 +275,7 @@ def _by_muscle(sq: np.ndarray, muscle: np.ndarray, m: int) -> tuple[float, ...]:
 
 
 def length_study(bench: BenchData, model="sarosi", *, n_folds: int = 5,
-                 forms: tuple[str, ...] = FORMS) -> LengthStudy:
+                 forms: tuple[str, ...] = FORMS, level: float = 0.95) -> LengthStudy:
     """Compare one fit per muscle, constants smooth in l0 and one set for every length, by
     cross-validated RMSE on held-out whole trials and BIC (module text).
 
@@ -285,6 +287,8 @@ def length_study(bench: BenchData, model="sarosi", *, n_folds: int = 5,
             eq. 2.1 by default.
         n_folds: most cross-validation folds per muscle.
         forms: the smooth forms to try (:data:`FORMS`).
+        level: the confidence level of every interval (the constants', their slopes', and
+            the between-muscle slopes'; the JSON keeps the names ``*_ci95``).
 
     Raises:
         BenchDataError: fewer than three distinct lengths, a muscle without l0, or a muscle
@@ -341,8 +345,8 @@ def length_study(bench: BenchData, model="sarosi", *, n_folds: int = 5,
     # (b) constants smooth in l0, each form; (c) one set for every length.
     s_spec = smooth_in_l0_spec(spec)
     smooth = {form: _pooled_fit(s_spec, (*x_base, l0_feature(l0_row, form, l0_ref)), y, curve,
-                                fold, muscle, k_folds, m) for form in forms}
-    pooled = _pooled_fit(spec, x_base, y, curve, fold, muscle, k_folds, m)
+                                fold, muscle, k_folds, m, level) for form in forms}
+    pooled = _pooled_fit(spec, x_base, y, curve, fold, muscle, k_folds, m, level)
     for name, k, fit in ([(f"smooth_{f}", 2 * spec.n_params, smooth[f]) for f in forms]
                          + [("pooled", spec.n_params, pooled)]):
         options.append(LengthOption(
@@ -356,7 +360,7 @@ def length_study(bench: BenchData, model="sarosi", *, n_folds: int = 5,
     form = min(forms, key=lambda f: next(o.cv_rmse_N for o in options
                                          if o.name == f"smooth_{f}"))
     dependence = _dependence(spec, form, smooth[form].fit, per.fit.theta,
-                             l0_feature(l0, form, l0_ref))
+                             l0_feature(l0, form, l0_ref), level)
     contenders = [o for o in options if o.converged and o.name in
                   ("per_muscle", f"smooth_{form}", "pooled")]
     best_cv = min(o.cv_rmse_N for o in contenders)
@@ -369,20 +373,21 @@ def length_study(bench: BenchData, model="sarosi", *, n_folds: int = 5,
         verdict=_verdict(options, best, form, dependence, l0))
 
 
-def _dependence(spec, form, fit, theta_per, g_muscle) -> tuple[ConstantVsLength, ...]:
+def _dependence(spec, form, fit, theta_per, g_muscle, level) -> tuple[ConstantVsLength, ...]:
+    """Each constant against the length: the smooth fit's slope, and the slope of the
+    per-muscle constants regressed on g(l0) (ordinary least squares over the muscles, its
+    Wald interval from pamid's one covariance, ``pamid._inference``)."""
     p = spec.n_params
     m = len(g_muscle)
     design = np.stack([np.ones(m), g_muscle], axis=1)
     coef, *_ = np.linalg.lstsq(design, theta_per, rcond=None)  # (2, p)
     resid = theta_per - design @ coef
     dof = m - 2
-    cov_unscaled = np.linalg.inv(design.T @ design)
-    t = stats.t.ppf(0.975, dof) if dof > 0 else np.nan
+    slope_se = np.sqrt(residual_variance(np.sum(resid**2, axis=0), dof)
+                       * unscaled_covariance(design)[0][1, 1])  # (p,)
     out = []
     cluster = fit.ci95_cluster
     for j, name in enumerate(spec.param_names):
-        s2 = float(resid[:, j] @ resid[:, j] / dof) if dof > 0 else np.nan
-        half = t * math.sqrt(s2 * cov_unscaled[1, 1]) if dof > 0 else np.nan
         b = float(coef[1, j])
         out.append(ConstantVsLength(
             name=name, unit=spec.param_units[name],
@@ -391,7 +396,8 @@ def _dependence(spec, form, fit, theta_per, g_muscle) -> tuple[ConstantVsLength,
             slope=float(fit.theta[0, p + j]), slope_ci95=tuple(map(float, fit.ci95[0, p + j])),
             slope_ci95_cluster=(None if cluster is None or not np.all(np.isfinite(
                 cluster[0, p + j])) else tuple(map(float, cluster[0, p + j]))),
-            slope_between=b, slope_ci95_between=(b - half, b + half),
+            slope_between=b,
+            slope_ci95_between=tuple(map(float, wald_interval(b, slope_se[j], dof, level))),
             per_muscle=tuple(map(float, theta_per[:, j]))))
     return tuple(out)
 

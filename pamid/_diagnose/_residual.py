@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from .._effects._basis import legendre_basis, scaled
+from .._inference import numerical_rank
 
 __all__ = ["covariate_dependence", "ljung_box", "runs_test", "scaled", "legendre_basis"]
 
@@ -120,7 +121,7 @@ def covariate_dependence(
     alt = _demean(np.column_stack(cols), groups)
     rss0 = float(r0 @ r0)
     rss1 = _rss(alt, r0)
-    df1 = int(np.linalg.matrix_rank(alt))
+    df1 = int(numerical_rank(alt))  # pamid's one rank criterion
     df2 = len(r) - n_groups - df1
     if df1 <= 0 or df2 <= 0 or rss1 <= 0:
         return {"f": math.nan, "dof": [int(df1), int(df2)], "p_value": math.nan, "bins": bins}

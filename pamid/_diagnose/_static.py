@@ -61,9 +61,9 @@ from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
 from .._fit._engine import CONVERGED, levenberg_marquardt
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
-from .._fit._rank import RANK_RTOL  # the one rank criterion of pamid's fits
 from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
+from .._inference import residual_variance, unscaled_covariance, wald_interval
 from .._units import KPA_PER_BAR
 from ._residual import legendre_basis, scaled
 from ._select import SetFit
@@ -769,23 +769,6 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     return jax.tree.map(lambda a: a[:n], out)
 
 
-def numerical_rank(jac, rtol: float = RANK_RTOL):
-    """Numerical rank of ``jac`` (n × p) with its columns scaled to unit length: the
-    singular values above ``rtol`` times the largest. Constants the data cannot tell apart
-    count once in the BIC.
-
-    J = Q·R first (Householder, backward stable: R has J's singular values to rounding),
-    then the SVD of the p × p R. The SVD of the tall J itself allocated n × n on the CPU
-    (47 GB for one muscle of 9,596 samples in a batch of 64 lanes); Q·R needs n × p. The
-    eigenvalues of the scaled JᵀJ would square the condition number: a rank-deficient J
-    gives eigenvalues of rounding size, ~1e-16 of the largest, above a 1e-18 threshold.
-    """
-    norms = jnp.sqrt(jnp.sum(jac**2, axis=0))
-    scaled_jac = jac / jnp.where(norms > 0, norms, 1.0)
-    sv = jnp.linalg.svd(jnp.linalg.qr(scaled_jac, mode="r"), compute_uv=False)
-    return jnp.sum(sv > sv[0] * rtol)
-
-
 def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
     """One lane's least-squares problem: the set's effect columns ``cols`` (masked by
     ``colmask``) on top of the model, fitted to ``muscle``'s samples, all of them (``fold``
@@ -853,9 +836,9 @@ def _lane_statistics(spec, with_compliance, shared, muscle, cols, colmask, free,
     at the end) have no variance and no rank."""
     _, _, _, _, normal = _lane_problem(spec, with_compliance, shared, muscle, 0, cols,
                                        colmask)
-    jac = normal(params)[1] * free[None, :]
-    a = jac.T @ jac + jnp.diag(1.0 - free)
-    return jnp.linalg.inv(a) * free[:, None] * free[None, :], numerical_rank(jac)
+    # pamid's one covariance and rank criterion (``pamid._inference``), held constants out
+    jtj_inv, rank, _ = unscaled_covariance(normal(params)[1], free)
+    return jtj_inv, rank
 
 
 def _vmapped(lane):
@@ -872,16 +855,14 @@ _lane_statistics_jit = _vmapped(_lane_statistics)
 def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[dict]:
     """Per muscle: every selected effect's constants with Wald-t intervals (a constant
     chosen over a grid — the transient's τ — is given with its grid value and no interval)."""
-    from .._fit._intervals import wald_interval
-
     out = []
     params, cov_un = fit.extra["params"], fit.extra["jtj_inv"]
     for i in range(len(params)):
         dof = int(fit.n[i] - fit.k[i])
-        s2 = float(fit.sse[i]) / dof if dof > 0 else math.nan
-        se = np.sqrt(np.maximum(np.diag(cov_un[i]) * s2, 0.0))
-        if not fit.extra["full_rank"][i]:
-            se = np.full_like(se, np.nan)  # some constants are not identifiable: no interval
+        if fit.extra["full_rank"][i]:
+            se = np.sqrt(np.diag(cov_un[i]) * residual_variance(fit.sse[i], dof))
+        else:  # some constants are not identifiable: no interval
+            se = np.full(cov_un[i].shape[0], np.nan)
         effects = {}
         for name in fit.effects:
             e = problem.effect(name)

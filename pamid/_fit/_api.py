@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .._data._bench import BenchData
+from .._inference import scale_covariance
 from . import _correlated, _intervals
 from ._batch import FitData, pack_rows
 from ._least_squares import DEFAULT_STARTS, bounds_arrays, first_solve, fit_lanes, statistics
@@ -197,7 +198,7 @@ STATUSES = ("converged", "at_bound", "max_steps", "not_identifiable", "nonfinite
 def _statuses(spec, data: FitData, lanes, n, full_rank, se, sse):
     """Per muscle, the result code (:data:`STATUSES`) and, where it is not "converged", why
     in words, naming the constants at fault (the null direction of the Jacobian,
-    :mod:`._rank`)."""
+    :mod:`pamid._inference`)."""
     p = spec.n_params
     theta = lanes.theta
     at_bound = lanes.at_lower | lanes.at_upper
@@ -217,8 +218,8 @@ def _statuses(spec, data: FitData, lanes, n, full_rank, se, sse):
 def _one_status(spec, data, lanes, i, n, full_rank, se, sse, status, messages):
     """Muscle ``i``'s entry of :func:`_statuses`, set in the lists ``status`` and
     ``messages`` (returned)."""
+    from .._inference import RANK_RTOL, null_direction, undetermined
     from ._least_squares import _jacobian_rows
-    from ._rank import RANK_RTOL, null_direction, undetermined
 
     p, names = spec.n_params, spec.param_names
     theta = lanes.theta
@@ -506,8 +507,7 @@ def fit_least_squares(
         blo, bhi, _, boot_ok = _intervals.bootstrap(spec, data, theta, key, n_bootstrap, level)
         ci_boot = np.stack([blo, bhi], axis=-1)
 
-    with np.errstate(invalid="ignore"):  # NaN where the data do not determine a constant
-        covariance = s2[:, None, None] * jtj_inv
+    covariance = scale_covariance(jtj_inv, s2)  # ±inf where the data do not determine one
     # Data packed without their curves get them only where a cluster interval is computed.
     curves_of = (None if bench is None or {"bootstrap", "cluster", "hac"} & set(intervals) else
                  lambda muscles, width: _correlated.trial_groups(bench, of="curve",

@@ -57,8 +57,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._inference import t_critical, unscaled_covariance, wald_interval
 from ._batch import FitData, map_lanes
-from ._intervals import t_critical, wald_interval
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
 
@@ -104,14 +104,11 @@ def batch_residuals(spec: ModelSpec, theta, data: FitData) -> np.ndarray:
 
 
 def _bread(jac):
-    """A⁻¹ = (JᵀJ)⁻¹ per muscle (NaN where singular) and A."""
+    """A⁻¹ = (JᵀJ)⁻¹ per muscle (pamid's one covariance and rank criterion,
+    :func:`pamid._inference.unscaled_covariance`; NaN where J is rank-deficient) and A."""
     a = np.matmul(np.swapaxes(jac, 1, 2), jac)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        inv = np.full_like(a, np.nan)
-        ok = np.linalg.matrix_rank(a) == a.shape[-1]
-        if ok.any():
-            inv[ok] = np.linalg.inv(a[ok])
-    return a, inv
+    inv, _, full_rank = unscaled_covariance(jac)
+    return a, np.where(full_rank[:, None, None], inv, np.nan)
 
 
 def _dense_groups(groups):

@@ -43,7 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._rank import RANK_PIVOT  # the one rank criterion of pamid's fits (``_rank``)
+from .._inference import RANK_PIVOT  # the one rank criterion (``pamid._inference``)
 from ._variable_projection import _parabolic_trial, _shrink_bracket, _small_cholesky_solve
 
 #: Largest subsample of a muscle scanned for the start (evenly spaced over its samples).

@@ -26,8 +26,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._inference import unscaled_covariance
 from ._batch import FitData, map_lanes, padded_rows
-from ._rank import RANK_RTOL
 from ._spec import ModelSpec, builtin_key
 
 SOLVERS = (
@@ -119,18 +119,9 @@ def _statistics(spec, theta, x, y, w):
     def one(theta, x, y, w):
         r = residuals(spec, theta, x, y, w)
         jac = jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
-        # (JᵀJ)⁻¹ through the SVD: stable, and honest (large) where J is nearly singular.
-        # J = Q·R first: R has J's singular values and right vectors, and the SVD of the
-        # small R plus the QR cost half the SVD of the tall J (measured at 1000 × 300 × 6).
-        # Columns scaled to unit length first, J = Js·D: the rank test (``_rank``, one
-        # criterion for every fit) does not depend on the constants' units, and
-        # (JᵀJ)⁻¹ = D⁻¹·(JsᵀJs)⁻¹·D⁻¹.
-        norms = jnp.sqrt(jnp.sum(jac**2, axis=0))
-        d = jnp.where(norms > 0, norms, 1.0)
-        _, s, vt = jnp.linalg.svd(jnp.linalg.qr(jac / d, mode="r"), full_matrices=False)
-        full_rank = s[-1] > s[0] * RANK_RTOL
-        s_inv = jnp.where(s > s[0] * RANK_RTOL, 1.0 / s, jnp.inf)
-        jtj_inv = ((vt.T * s_inv**2) @ vt) / (d[:, None] * d[None, :])
+        # (JᵀJ)⁻¹ and the rank test, pamid's one of each (``pamid._inference``): through
+        # the SVD of the column-scaled J (Q·R first), +inf where J is rank-deficient.
+        jtj_inv, _, full_rank = unscaled_covariance(jac)
         model = spec.predict(theta, x)
         n = jnp.sum(w)
         mean_y = jnp.sum(w * y) / n
@@ -581,7 +572,7 @@ def _rank_deficient(spec, theta, data, lanes, free=None) -> np.ndarray:
         cols = np.ones(spec.n_params, bool) if free is None else free[i]
         if not np.any(cols):
             continue
-        from ._rank import null_direction
+        from .._inference import RANK_RTOL, null_direction
 
         ratio, _ = null_direction(jac[:, cols])
         out[j] = not ratio > RANK_RTOL

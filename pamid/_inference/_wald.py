@@ -1,0 +1,47 @@
+"""Wald intervals: θ̂ ± t_{(1+level)/2, n−p}·se with se² = s²·diag((JᵀJ)⁻¹) (Bates & Watts 1988,
+section 2.3; what Excel's regression add-in reports, and how Sárosi computed Table 3-1).
+pamid's one Wald routine: fits, diagnosis refits, decays and the length study use it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._covariance import residual_variance
+
+
+def t_critical(dof, level: float = 0.95):
+    """Two-sided Student-t quantile for ``level`` with ``dof`` degrees of freedom."""
+    # scipy.special's inverse t distribution: scipy.stats costs much more at start-up
+    # (benchmarks/README.md, "Figures that used to live in docstrings", (h))
+    from scipy.special import stdtrit
+
+    dof = np.asarray(dof, float)
+    # Once where every muscle has the same dof (a file of equal muscles): stdtrit took
+    # 0.3 ms for 1000 equal values, 2 % of a fit of 1000 muscles.
+    held = np.maximum(dof, 1)
+    if held.size > 1 and np.all(held == held.flat[0]):
+        t = np.full(held.shape, stdtrit(held.flat[0], 0.5 + level / 2))
+    else:
+        t = stdtrit(held, 0.5 + level / 2)
+    return np.where(dof > 0, t, np.nan)
+
+
+def wald_interval(value, se, dof, level: float = 0.95):
+    """The Wald interval value ± t·se with the Student-t quantile for ``dof`` degrees of
+    freedom (pamid's one Wald routine; broadcasts). Returns (lower, upper); NaN without
+    degrees of freedom."""
+    t = t_critical(dof, level)
+    value, se = np.asarray(value, float), np.asarray(se, float)
+    return value - t * se, value + t * se
+
+
+def wald(theta, jtj_inv, sse, n, level: float = 0.95):
+    """Wald intervals of a least-squares fit: se² = s²·diag((JᵀJ)⁻¹), s² = SSE/(n − p), and
+    :func:`wald_interval`. Returns (se, lower, upper, s2, dof)."""
+    n_params = theta.shape[-1]
+    dof = n - n_params
+    s2 = residual_variance(sse, dof)
+    with np.errstate(invalid="ignore"):  # undetermined constants: NaN, said in the message
+        se = np.sqrt(s2[:, None] * np.diagonal(jtj_inv, axis1=-2, axis2=-1))
+    lower, upper = wald_interval(theta, se, np.asarray(dof)[..., None], level)
+    return se, lower, upper, s2, dof
