@@ -208,6 +208,12 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     spec = get_model(model, bench.frame)
     _check_enough_rows(bench, spec)
     problem = StaticProblem(bench, spec, n_folds=n_folds, bounds=bounds)  # checks its baseline
+    for f in problem.flagged:
+        if progress is not None:
+            progress(f"muscle {f['muscle']}: {f['why']}; "
+                     + ("diagnosed with the others, that constant held"
+                        if f["diagnosed"] else "left out of the diagnosis"))
+    bench = problem.bench  # without the muscles left out
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
                             progress=progress, unphysical=problem.unphysical,
                             refresh=problem.refresh_grids)
@@ -216,15 +222,20 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     covs = [*problem.covariates, "force_N"]
     before = analyse_residual(table, "residual_before_N", covs)
     after = analyse_residual(table, "residual_after_N", covs)
+    status = {f["muscle"]: f["status"] for f in problem.flagged}
     constants = [
         {"muscle": m, **({"effects": e} if e else {"effects": {}}),
          "base": dict(zip(spec.param_names, map(float, final.extra["params"][i][:spec.n_params]),
-                          strict=True))}
+                          strict=True)),
+         # "not_identifiable": the base constants are the best fit within bounds, one held
+         # on its bound (muscles_flagged says which and why), not a finding
+         "baseline_status": status.get(m, problem.baseline.status_of(i))}
         for i, (m, e) in enumerate(zip(bench.muscles, intervals(problem, final), strict=True))
     ]
     d = build_diagnosis(bench.path, "bench", spec.name, list(bench.muscles), result,
                         before, after, constants, table, unexplained(after))
     d.rows_used, d.rows_total, d.subsample = len(bench.frame), rows_total, note
+    d.muscles_flagged = [dict(f) for f in problem.flagged]
     d.covariates_not_used = [{"column": c, "why": why}
                              for c, why in problem.not_covariates.items()]
     return d

@@ -58,6 +58,10 @@ class Diagnosis:
     subsample: str | None = None  # how the subsample was drawn; None for all rows
     #: Numeric columns of the file not used as covariates: [{"column", "why"}].
     covariates_not_used: list[dict] = dataclasses.field(default_factory=list)
+    #: Muscles whose baseline fit did not converge: [{"muscle", "status", "why",
+    #: "diagnosed"}]; diagnosed: its best fit within bounds (a constant the data do not
+    #: determine held on its bound) is diagnosed with the others; else left out.
+    muscles_flagged: list[dict] = dataclasses.field(default_factory=list)
 
     def __post_init__(self):
         if self.rows_used is None:
@@ -81,6 +85,7 @@ class Diagnosis:
             "constants": self.constants, "residual_before": self.residual_before,
             "residual_after": self.residual_after, "unexplained": self.unexplained,
             "covariates_not_used": self.covariates_not_used,
+            "muscles_flagged": self.muscles_flagged,
         })
 
 

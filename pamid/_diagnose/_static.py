@@ -188,25 +188,71 @@ def _muscle_rows(bench) -> list[np.ndarray]:
     return [np.asarray(idx[m]) for m in bench.muscles]
 
 
-def check_baseline(bench, spec: ModelSpec, baseline) -> None:
-    """The residual of a fit whose constants the data do not determine (or that has no
-    finite fit: forces near 1e302) says nothing about missing effects: such a muscle is
-    refused with the fit's own reason (``baseline``, the diagnosis's own fit of the model
-    alone), an :class:`~pamid.UntrustedResultError` (exit 1, as ``pamid fit``)."""
+def held_within_bounds(baseline, i: int, lower, upper) -> bool:
+    """Whether muscle ``i``'s baseline (a :class:`~pamid._fit._api.FitResult` that did not
+    converge) is the best fit within the model's bounds of a constant the data do not
+    determine: status "not_identifiable", every constant finite, at least one held on a
+    bound (``lower``, ``upper``: :func:`pamid._fit._least_squares.bounds_arrays`), and a
+    finite standard error for every constant not on a bound (the fit's own rank test of
+    the others). Its residual is that of a least-squares fit with those constants held: a
+    diagnosis of it means what it means for any muscle, with the held constants held."""
+    if lower is None or baseline.status_of(i) != "not_identifiable":
+        return False
+    theta = np.asarray(baseline.theta[i], float)
+    held = _on_bound(theta, lower, upper)
+    return bool(np.all(np.isfinite(theta)) and held.any()
+                and np.all(np.isfinite(np.asarray(baseline.se[i], float)[~held])))
+
+
+def check_baseline(bench, spec: ModelSpec, baseline, lower=None, upper=None) -> list[dict]:
+    """Which muscles' baselines (``baseline``, the diagnosis's own fit of the model alone)
+    can be diagnosed, and which are flagged.
+
+    A muscle whose fit converged is diagnosed. One whose constant the data do not determine
+    but whose best fit within bounds is otherwise determined (:func:`held_within_bounds`:
+    three contraction levels whose intercepts no exponential fits, a3 held on its bound) is
+    diagnosed with the others, that constant held, and flagged. Any other (no finite fit,
+    too few rows, constants the data cannot tell apart even with the bounds, a solver out
+    of steps) has a residual that says nothing about missing effects: it is left out of
+    the diagnosis and flagged, never the whole file for one muscle. Only when no muscle
+    can be diagnosed is the file refused, with the first one's reason, an
+    :class:`~pamid.UntrustedResultError` (exit 1, as ``pamid fit``).
+
+    Returns one entry per flagged muscle, in file order: ``{"muscle", "status", "why",
+    "diagnosed"}`` (``status`` and ``why``: the fit's result code and message).
+    """
     from .._errors import UntrustedResultError
 
+    flags = []
     for i, muscle in enumerate(bench.muscles):
-        if not baseline.converged[i]:
-            who = f"muscle '{muscle}'" if bench.has_muscle_column else "the data"
-            raise UntrustedResultError(
-                f"{bench.path}: the baseline {spec.source} fit of {who} is not trustworthy "
-                f"({baseline.message(i)}); a diagnosis of its residual would mean nothing")
+        if baseline.converged[i]:
+            continue
+        flags.append({"muscle": muscle, "status": baseline.status_of(i),
+                      "why": baseline.message(i),
+                      "diagnosed": held_within_bounds(baseline, i, lower, upper)})
+    if flags and sum(not f["diagnosed"] for f in flags) == len(bench.muscles):
+        first = flags[0]
+        who = f"muscle '{first['muscle']}'" if bench.has_muscle_column else "the data"
+        raise UntrustedResultError(
+            f"{bench.path}: the baseline {spec.source} fit of {who} is not trustworthy "
+            f"({first['why']}); a diagnosis of its residual would mean nothing")
+    return flags
+
+
+def _without_muscles(bench, muscles) -> object:
+    """``bench`` without the rows of ``muscles``."""
+    import dataclasses
+
+    keep = ~bench.frame["muscle"].isin(list(muscles)).to_numpy()
+    return dataclasses.replace(bench, frame=bench.frame[keep].reset_index(drop=True),
+                               muscles=tuple(m for m in bench.muscles if m not in muscles))
 
 
 class StaticProblem:
     """One bench file prepared for diagnosis: packed data, covariates and effect features."""
 
-    def __init__(self, bench, spec: ModelSpec, *, n_folds: int = N_FOLDS, bounds=None):
+    def __init__(self, bench, spec: ModelSpec, *, n_folds: int = N_FOLDS, bounds=None,
+                 left_out: tuple[dict, ...] = ()):
         self.spec = spec
         #: Bounds of the model's constants (``bounds`` where given, the model's physical
         #: bounds elsewhere; :func:`pamid._fit._least_squares.bounds_arrays`), or None.
@@ -237,14 +283,26 @@ class StaticProblem:
         self.baseline = fit_least_squares(self.data, spec, intervals=("wald",),
                                           muscles=tuple(bench.muscles), bounds=bounds,
                                           show="wald")  # its residual is what is used
-        check_baseline(bench, spec, self.baseline)  # before anything is built on it
+        # Before anything is built on it: muscles whose residual means nothing are left
+        # out (the problem is built again without them), those held within bounds flagged.
+        flags = check_baseline(bench, spec, self.baseline, self.lower, self.upper)
+        out = tuple(f for f in flags if not f["diagnosed"])
+        if out:
+            self.__init__(_without_muscles(bench, {f["muscle"] for f in out}), spec,
+                          n_folds=n_folds, bounds=bounds, left_out=(*left_out, *out))
+            return
+        #: Muscles whose baseline did not converge (:func:`check_baseline`): those left out
+        #: of the diagnosis, then those diagnosed with a constant held on its bound.
+        self.flagged = [*left_out, *flags]
         self.theta0 = self.baseline.theta
         # A constant the baseline holds on a bound stays there in every refit (its gradient
         # points out of the bounds; an effect added on top is judged with it held).
         self.base_free = np.ones_like(np.asarray(self.theta0, float))
         if self.lower is not None:
             self.base_free[_on_bound(self.theta0, self.lower, self.upper)] = 0.0
-        self.baseline_converged = self.baseline.converged
+        # A muscle held within bounds is diagnosed like one whose fit converged.
+        self.baseline_converged = self.baseline.converged | np.isin(
+            np.asarray(bench.muscles, object), [f["muscle"] for f in flags if f["diagnosed"]])
         self.l0_mm = [bench.l0_mm.get(m_id) for m_id in bench.muscles]
         self.file = self._file_context(allrows, muscle_curves)
         self.muscles = [self._muscle_context(i, f, c, x)
@@ -293,6 +351,9 @@ class StaticProblem:
 
     def _file_context(self, rows: pd.DataFrame, muscle_curves) -> FileContext:
         p = rows["pressure_kPa"].to_numpy(float)
+        # The model's own terms are read from a muscle whose fit converged (a constant
+        # held on its bound, a3 = −3, makes terms vanish that the model does hold).
+        ref = int(np.argmax(self.baseline.converged)) if self.baseline.converged.any() else 0
         return FileContext(
             spec=self.spec, covariates=self.covariates,
             ranges={c: (float(rows[c].min()), float(rows[c].max())) for c in self.covariates},
@@ -305,8 +366,8 @@ class StaticProblem:
             step_input=_step_input(self.covariates, muscle_curves),
             max_repeat=int(rows["repeat"].max()) if "repeat" in rows else 0,
             distinct={c: int(rows[c].nunique()) for c in self.covariates},
-            in_model=degrees_in_model(self.spec, self.theta0[0], self.spec.x_from_frame(
-                self.frames[0]), self.frames[0], self.covariates,
+            in_model=degrees_in_model(self.spec, self.theta0[ref], self.spec.x_from_frame(
+                self.frames[ref]), self.frames[ref], self.covariates,
                 {c: (float(rows[c].min()), float(rows[c].max())) for c in self.covariates}),
         )
 

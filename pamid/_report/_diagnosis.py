@@ -35,6 +35,11 @@ def diagnosis_report(d) -> str:
     if getattr(d, "subsample", None):
         lines.append(f"subsample (--max-rows): {d.rows_used} of the file's {d.rows_total} "
                      f"rows diagnosed — {d.subsample}")
+    for f in getattr(d, "muscles_flagged", []):
+        what = ("fitted within bounds and diagnosed with the others, that constant held "
+                "(its value is the bound, not a finding)" if f["diagnosed"]
+                else "left out of the diagnosis (its residual would mean nothing)")
+        lines.append(f"flagged: muscle {f['muscle']}: {f['why']}; {what}")
     lines.append("")
     b = d.residual_before
     lines.append(f"1. Residual of the baseline: RMSE {d.rmse_before:.4g} {unit}, "
