@@ -58,6 +58,7 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "register_model": ("._fit._spec", "register_model"),
     "Sarosi": ("._models._sarosi", "Sarosi"),
     "Cullinan": ("._models._cullinan", "Cullinan"),
+    "Bolen2026": ("._models._bolen", "Bolen2026"),
     # Least squares, model comparison, devices.
     "FitResult": ("._fit._api", "FitResult"),
     "bench_to_fit_data": ("._fit._api", "bench_to_fit_data"),
@@ -85,11 +86,18 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "diagnose": ("._diagnose._api", "diagnose"),
     "LengthStudy": ("._diagnose._length", "LengthStudy"),
     "length_study": ("._diagnose._length", "length_study"),
+    # Pooled models across muscles: a muscle nobody has tested.
+    "MusclePrediction": ("._pooled._predict", "MusclePrediction"),
+    "predict_muscle": ("._pooled._predict", "predict_muscle"),
+    "PooledComparison": ("._pooled._lomo", "PooledComparison"),
+    "PooledModel": ("._pooled._lomo", "PooledModel"),
+    "compare_pooled": ("._pooled._lomo", "compare_pooled"),
     # Virtual benches and the effects they can hide in their data.
     "SarosiProtocol": ("._virtual._sweeps", "SarosiProtocol"),
     "simulate_sarosi_bench": ("._virtual._sweeps", "simulate_sarosi_bench"),
     "IsometricProtocol": ("._virtual._isometric", "IsometricProtocol"),
     "simulate_isometric_bench": ("._virtual._isometric", "simulate_isometric_bench"),
+    "simulate_population_bench": ("._virtual._population", "simulate_population_bench"),
     "virtual_lab_file": ("._virtual._isometric", "virtual_lab_file"),
     "write_bench_csv": ("._virtual._isometric", "write_bench_csv"),
     "DecayProtocol": ("._virtual._decay", "DecayProtocol"),
@@ -326,10 +334,16 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._fit._sharding import use_devices as use_devices
     from ._fit._spec import ModelDefinitionError as ModelDefinitionError
     from ._fit._spec import register_model as register_model
+    from ._models._bolen import Bolen2026 as Bolen2026
     from ._models._cullinan import Cullinan as Cullinan
     from ._models._protocol import ForceModel as ForceModel
     from ._models._sarosi import Sarosi as Sarosi
     from ._models._volume import PamVolume as PamVolume
+    from ._pooled._lomo import PooledComparison as PooledComparison
+    from ._pooled._lomo import PooledModel as PooledModel
+    from ._pooled._lomo import compare_pooled as compare_pooled
+    from ._pooled._predict import MusclePrediction as MusclePrediction
+    from ._pooled._predict import predict_muscle as predict_muscle
     from ._sampling._arviz import load_inference_data as load_inference_data
     from ._sampling._ensemble import EnsembleState as EnsembleState
     from ._sampling._ensemble import de_move as de_move
@@ -368,6 +382,7 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._virtual._joint import deflection_test_stiffness as deflection_test_stiffness
     from ._virtual._joint import simulate_deflection_test as simulate_deflection_test
     from ._virtual._joint import simulate_joint_sweep as simulate_joint_sweep
+    from ._virtual._population import simulate_population_bench as simulate_population_bench
     from ._virtual._sweeps import SarosiProtocol as SarosiProtocol
     from ._virtual._sweeps import simulate_sarosi_bench as simulate_sarosi_bench
 

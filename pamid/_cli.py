@@ -408,6 +408,10 @@ def _parser() -> argparse.ArgumentParser:
 
     compare.register(sub)
 
+    from ._commands import predict
+
+    predict.register(sub)
+
     from ._commands import warmup
 
     warmup.register(sub)

@@ -57,6 +57,12 @@ from ._report._mcmc import (
     save_netcdf,
     write_mcmc_plots,
 )
+from ._report._pooled import (
+    plot_pooled_lomo,
+    plot_prediction,
+    pooled_table,
+    prediction_table,
+)
 
 __all__ = [
     # A least-squares fit (FitResult): its JSON text and its figures.
@@ -69,4 +75,6 @@ __all__ = [
     "diagnosis_report", "plot_diagnosis_residuals", "plot_diagnosis_time_order",
     # A model comparison (Comparison): the table and figures.
     "comparison_table", "plot_comparison", "plot_cv_rmse", "write_comparison_plots",
+    # A pooled comparison (PooledComparison) and a predicted muscle (MusclePrediction).
+    "plot_pooled_lomo", "plot_prediction", "pooled_table", "prediction_table",
 ]

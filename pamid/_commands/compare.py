@@ -9,6 +9,10 @@ against the data, and a summary plot of the CV RMSE per model and muscle (the ta
 the figures: :mod:`pamid._report._compare`). Progress goes to stderr. Exit 0 when every
 muscle has a best model (a converged fit), 1 when some muscle has none, 2 for bad input (an
 unknown model, a file that lacks a model's input).
+
+``--pooled`` adds the pooled models over all muscles (:mod:`pamid._pooled._lomo`), ranked by
+leave-one-muscle-out RMSE: the JSON's ``"pooled"`` list, a second table, and
+pooled_lomo.png; ``pamid predict`` reads them back.
 """
 
 from __future__ import annotations
@@ -54,10 +58,24 @@ def register(subparsers) -> None:
                      help="physical bounds of constants in place of the models' own, e.g. "
                           "'sarosi.a3=-3:0' for one model, or 'a3=-3:0' for every compared "
                           "model with a constant a3 (an empty side: no bound there)")
+    cmp.add_argument("--pooled", action="store_true",
+                     help="also fit pooled models over all muscles (constants shared, smooth "
+                          "in the descriptors, per muscle, the Bolen et al. 2026 law) and rank "
+                          "them by leave-one-muscle-out RMSE; the per-muscle ranking then "
+                          "covers --models only (default: sarosi)")
+    cmp.add_argument("--describe", default="l0_mm", metavar="A,B,…",
+                     help="with --pooled: the per-muscle descriptors smooth constants depend "
+                          "on (default l0_mm; also diameter_mm, emax_pct or any numeric "
+                          "column with one value per muscle)")
+    cmp.add_argument("--roles", default=None, metavar="NAME=ROLE,…",
+                     help="with --pooled: also a pooled model of your roles, e.g. "
+                          "'a1=shared,a3=per_muscle' (ROLE: shared, smooth, per_muscle; "
+                          "constants not named are smooth); for the first of --models")
     from ._reading import add_reading_arguments
 
     add_reading_arguments(cmp)
-    cmp.set_defaults(func=cmd_compare, outputs=("compare.json", "models_*.png", "cv_rmse.png"))
+    cmp.set_defaults(func=cmd_compare, outputs=("compare.json", "models_*.png", "cv_rmse.png",
+                                                "pooled_lomo.png"))
 
 
 def _model_list(text: str | None) -> list[str] | None:
@@ -86,6 +104,8 @@ def cmd_compare(args) -> int:
     if args.folds < 2:
         raise ValueError("--folds must be at least 2")
     models = _model_list(args.models)
+    if getattr(args, "pooled", False) and models is None:
+        models = ["sarosi"]
     specs = [check_model(ref)  # a typo or a broken model file: one line, before reading data
              for ref in (models if models is not None else list(MODELS))]
     bounds = parse_bounds_per_model(args.bounds, specs)
@@ -98,6 +118,9 @@ def cmd_compare(args) -> int:
     payload = result.to_dict()
     payload["source"] = str(args.data)
     payload["n_censored_dropped"] = bench.n_censored
+    pooled = _pooled(args, bench, specs, progress) if getattr(args, "pooled", False) else None
+    if pooled is not None:
+        payload.update(pooled.to_dict())
     if args.out:
         out = Path(args.out)
         progress(f"writing plots to {final_place(out)}")
@@ -105,6 +128,11 @@ def cmd_compare(args) -> int:
         payload["plots"] = write_comparison_plots(result, bench, out, args.max_plots,
                                                   owners=owners)
         payload["muscle_of_file"] = owners
+        if pooled is not None:
+            from .._report._pooled import plot_pooled_lomo
+
+            plot_pooled_lomo(pooled, out / "pooled_lomo.png")
+            payload["plots"].append("pooled_lomo.png")
         payload["seconds"] = round(time.perf_counter() - t0, 3)
         write_text_atomic(out / "compare.json", json.dumps(payload, indent=2) + "\n")
     payload["seconds"] = round(time.perf_counter() - t0, 3)
@@ -112,5 +140,26 @@ def cmd_compare(args) -> int:
         print(json.dumps(payload))
     else:
         print(comparison_table(result))
+        if pooled is not None:
+            from .._report._pooled import pooled_table
+
+            print()
+            print(pooled_table(pooled))
     progress("done")
     return 0 if all(m["best"] is not None for m in payload["muscles"]) else 1
+
+
+def _pooled(args, bench, specs, progress):
+    """``--pooled``: every pooled model of the file's muscles, ranked by LOMO RMSE."""
+    from .._pooled._lomo import compare_pooled
+    from .._pooled._spec import parse_roles
+
+    describe = tuple(s.strip() for s in args.describe.split(",") if s.strip())
+    if not describe:
+        raise ValueError("--describe: name at least one descriptor, e.g. --describe l0_mm")
+    roles = (None if args.roles is None
+             else parse_roles(args.roles, specs[0].param_names))
+    result = compare_pooled(bench, specs, describe=describe, roles=roles, progress=progress)
+    for name, why in result.skipped:
+        progress(f"skipped pooled {name}: {why}")
+    return result
