@@ -222,3 +222,30 @@ def test_a_lane_out_of_passes_returns_its_last_evaluated_point(small_bench):
         sse_start = np.sum((force_np(start[i], p, k) - y) ** 2)
         sse_3 = np.sum((force_np(np.asarray(theta3[i]), p, k) - y) ** 2)
         assert sse_3 < 0.01 * sse_start  # an accepted point on the way down
+
+
+def test_a_muscle_eq_2_1_cannot_follow_ends_at_its_best_point():
+    """A muscle whose force is Cullinan's quadratic in the contraction with E = 0 (Cullinan
+    et al., F = A + B·P − (C + D·P)·y), logged at four contraction levels: eq. 2.1's least
+    squares has no finite optimum (its SSE falls all the way to a3 → 0, where a1, a2, a5 and
+    a6 grow without bound and cancel). Gauss–Newton, whose accepted steps may raise the SSE
+    up to ``GROW_LIMIT``-fold, runs out of passes on that ridge; it returns the lowest-SSE
+    point it evaluated (before: its last accepted point, 15.109 N of RMSE against 15.060 N;
+    on a bench file of the same law, 290 N from a start of 16 N), never worse than its
+    start, and does not claim convergence."""
+    p = np.tile(np.linspace(0.0, 6.2, 1000), 4)
+    k = np.repeat([0.0, 7.0, 14.0, 21.0], 1000)
+    f = -50.0 + 300.0 * p - (10.0 + 8.0 * p) * k
+    keep = f > 1.0  # a slack muscle logs no force
+    p, k = p[keep], k[keep]
+    y = f[keep] + np.random.default_rng(0).normal(scale=15.0, size=p.size)
+    x = (jnp.asarray(p[None]), jnp.asarray(k[None]))
+    yy, w = jnp.asarray(y[None]), jnp.ones((1, p.size))
+    start = np.asarray(gn.sarosi_fast_start(x, yy, w))
+    theta, ok, steps = gn.sarosi_gauss_newton(x, yy, w, start, max_steps=100)
+    sse = lambda t: float(np.sum((force_np(np.asarray(t), p, k) - y) ** 2))  # noqa: E731
+    assert not bool(ok[0]) and int(steps[0]) == 100
+    assert sse(theta[0]) < sse(start[0])
+    # the best point: no later pass of the same run found a lower SSE
+    for more in (60, 80):
+        assert sse(theta[0]) <= sse(gn.sarosi_gauss_newton(x, yy, w, start, max_steps=more)[0][0])

@@ -275,7 +275,7 @@ def _one_status(spec, data, lanes, i, n, full_rank, se, sse, status, messages):
         return put("not_identifiable", text)
     if not lanes.ok[i]:
         return put("max_steps", f"the solver stopped after {int(lanes.steps[i])} steps without "
-                   "meeting its tolerance; the constants shown are its last accepted point")
+                   "meeting its tolerance; the constants shown are the best point it reached")
     if not np.all(np.isfinite(se[i])):
         bad = [names[j] for j in np.flatnonzero(~np.isfinite(se[i]))]
         return put("not_identifiable", f"no finite standard error for {', '.join(bad)}: those "

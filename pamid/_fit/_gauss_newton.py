@@ -31,8 +31,10 @@ with J at the new point; the neglected term is ½·Δθᵀ(∂²r/∂θ²)Δθ, 
 test is met (|Δa3| ≲ 1e-11/%: (a1·p + a2)·κ²·e·Δa3² ≲ 1e-16), far below atol. A step that
 multiplies the residual sum of squares by more than ``GROW_LIMIT`` (or makes it non-finite)
 is halved; optimistix's Gauss–Newton has no safeguard. A lane whose step is not finite stops,
-not converged; so does one whose step was halved below the tolerance. A lane that has not
-converged returns its last accepted point.
+not converged; so does one whose step was halved below the tolerance. Beside the Cauchy
+test, an SSE test (``STALL_RTOL``): a lane whose SSE has stopped falling converges where its
+steps are below ``STALL_STEP`` (rounding may keep them above the Cauchy tolerance on large
+files). A lane that has not converged returns the lowest-SSE point it evaluated.
 """
 
 from __future__ import annotations
@@ -61,6 +63,19 @@ NEWTON_BELOW = 0.01
 #: halving every such step crawls; not 10 either, which lets a start with a3 three times too
 #: large wander off (both measured on synthetic muscles; tests/test_fast_fit.py).
 GROW_LIMIT = 2.0
+
+#: The SSE test beside the Cauchy one: a lane whose SSE has not fallen by more than
+#: ``STALL_RTOL`` of itself in ``STALL_PASSES`` accepted passes, and whose last step is
+#: below ``STALL_STEP`` of every constant (atol-floored), stands at an optimum that rounding
+#: keeps the Cauchy test from confirming (on tens of thousands of rows of residuals of tens
+#: of newtons, Jᵀr carries rounding of n·ε·Σ|J||r|, and the steps it makes may stay above
+#: rtol·|θ| = 1e-10·|θ| for ever): it counts as converged. A lane whose SSE stalls while its
+#: constants still move is on a ridge (constants growing without bound) and goes on, not
+#: converged, to its last pass: accepted steps that raise the SSE (``GROW_LIMIT``) are how
+#: it crosses curved valleys, so the test does not cut them short.
+STALL_RTOL = 1e-12
+STALL_PASSES = 10
+STALL_STEP = 1e-6
 
 
 #: Successive parabolic steps that refine the best grid point of the start's scan.
@@ -420,7 +435,8 @@ def sarosi_gauss_newton(
         return (it < max_steps) & jnp.any(active)
 
     def body(state):
-        it, theta, theta_prev, step, sse_prev, has_prev, active, converged, steps, full_next = state
+        (it, theta, theta_prev, step, sse_prev, has_prev, active, converged, steps, full_next,
+         best, best_sse, anchor, stall) = state
         small = jnp.max(jnp.abs(step) / (atol + rtol * jnp.abs(theta)), axis=-1) < 1
         # When the last step of every active lane is below the tolerance, this pass can only
         # confirm convergence: the cheap one (rᵀr and the residual test) does. A lane it
@@ -436,6 +452,17 @@ def sarosi_gauss_newton(
         worse = has_prev & ~(sse <= sse_prev * (grow + 1e-10) + sse_floor)
         done = has_prev & ~worse & small & (worst < atol)
         redo = check_only & active & ~done & ~worse
+        # The lowest SSE evaluated so far: what a lane that does not converge returns.
+        better = active & (sse < best_sse)
+        best = jnp.where(better[:, None], theta, best)
+        best_sse = jnp.where(better, sse, best_sse)
+        # The SSE test (``STALL_RTOL``): accepted passes since the SSE last fell by more than
+        # that (a step being halved is not counted: it has not been tried yet).
+        fell = best_sse < anchor * (1.0 - STALL_RTOL) - sse_floor
+        anchor = jnp.where(active & fell, best_sse, anchor)
+        stall = jnp.where(active & fell, 0, stall + (active & ~worse))
+        tiny = jnp.max(jnp.abs(step) / (atol + STALL_STEP * jnp.abs(theta)), axis=-1) < 1
+        done = done | (active & has_prev & ~worse & (stall >= STALL_PASSES) & tiny)
         jtj = _jtj(varying, fixed)
         new_step = -_solve_scaled(jtj, jtr, 1e-14)
         if newton > 0:
@@ -462,6 +489,10 @@ def sarosi_gauss_newton(
             converged | (active & done),
             steps + active,
             jnp.any(redo),
+            best,
+            best_sse,
+            anchor,
+            stall,
         )
 
     state = (
@@ -475,11 +506,16 @@ def sarosi_gauss_newton(
         false,
         jnp.zeros(m, jnp.int32),
         jnp.array(False),
+        theta0,
+        jnp.full(m, jnp.inf),
+        jnp.full(m, jnp.inf),
+        jnp.zeros(m, jnp.int32),
     )
-    _, theta, theta_prev, _, _, _, _, converged, steps, _ = jax.lax.while_loop(cond, body, state)
-    # A lane that has not converged returns its last accepted point, not a trial step that
-    # nobody has evaluated (or one that was rejected).
-    theta = jnp.where(converged[:, None], theta, theta_prev)
+    out = jax.lax.while_loop(cond, body, state)
+    theta, converged, steps, best = out[1], out[7], out[8], out[10]
+    # A lane that has not converged returns the best point it evaluated (never worse than
+    # its start), not a trial step that nobody has evaluated or one that raised the SSE.
+    theta = jnp.where(converged[:, None], theta, best)
     return theta, converged, steps
 
 
