@@ -71,6 +71,10 @@ def register(subparsers) -> None:
                      help="with --pooled: also a pooled model of your roles, e.g. "
                           "'a1=shared,a3=per_muscle' (ROLE: shared, smooth, per_muscle; "
                           "constants not named are smooth); for the first of --models")
+    cmp.add_argument("--bayes", action="store_true",
+                     help="with --pooled: also the hierarchical Bayesian Bolen law (each "
+                          "muscle's factor drawn from the population; ensemble sampler, "
+                          "PRNG key 0; minutes on a file of thousands of rows)")
     from ._reading import add_reading_arguments
 
     add_reading_arguments(cmp)
@@ -159,7 +163,13 @@ def _pooled(args, bench, specs, progress):
         raise ValueError("--describe: name at least one descriptor, e.g. --describe l0_mm")
     roles = (None if args.roles is None
              else parse_roles(args.roles, specs[0].param_names))
-    result = compare_pooled(bench, specs, describe=describe, roles=roles, progress=progress)
+    bayes = None
+    if args.bayes:
+        import jax
+
+        bayes = jax.random.key(0)
+    result = compare_pooled(bench, specs, describe=describe, roles=roles, bayes=bayes,
+                            progress=progress)
     for name, why in result.skipped:
         progress(f"skipped pooled {name}: {why}")
     return result

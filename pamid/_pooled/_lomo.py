@@ -30,8 +30,11 @@ F̂ ± √((z·σ)² + (t·√(1 + 1/M)·τ·F̂)²), z the normal and t the Stu
 quantile: the spread between muscles is estimated from M muscles only (the interval of a
 new draw from a population whose mean and spread are estimated from M).
 ``lomo_coverage_95`` reports, per muscle, the share of its rows inside the interval
-calibrated on the *other* muscles' residuals. A first slice: the hierarchical-Bayes fit of
-issue #31 is not done.
+calibrated on the *other* muscles' residuals.
+
+**Partial pooling** (``bayes=key``): ``bolen2026_hierarchical``, the Bolen law with a
+factor of each muscle's own drawn from the population (:mod:`._hierarchical`), sampled on
+every lane; a new muscle's interval is its posterior predictive.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import dataclasses
 import functools
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
@@ -54,10 +58,13 @@ from .._fit._least_squares import fit_lanes
 from .._fit._spec import ModelSpec, get_model, spec_from_model
 from .._models._bolen import HUNT_LAB_CODE_10MM, Bolen2026
 from ._descriptors import EMAX, Descriptors, muscle_descriptors
+from ._hierarchical import fit_hierarchical, predictive_interval
 from ._spec import mean_per_muscle, pooled_spec
 
 #: The pooled models of each base (module text), in the order they are fitted.
 POOLED_KINDS = ("shared", "smooth", "custom", "nearest")
+#: The hierarchical fit takes every k-th row of a file so that at most this many remain.
+BAYES_MAX_ROWS = 6000
 #: A pooled comparison needs this many muscles (two to fit a slope, one to leave out).
 MIN_MUSCLES = 3
 LEVEL = 0.95
@@ -175,6 +182,7 @@ class PooledModel:
     contraction_max_pct: float = float("nan")
     pressure_max_kPa: float = float("nan")
     lomo_lanes_converged: int | None = None
+    posterior: dict | None = None
 
     def to_dict(self) -> dict:
         d = self.descriptors
@@ -204,6 +212,8 @@ class PooledModel:
             "contraction_max_pct": _num(self.contraction_max_pct),
             "pressure_max_kPa": _num(self.pressure_max_kPa),
         }
+        if self.posterior is not None:
+            out["posterior"] = self.posterior
         if self.theta_per_muscle is not None:
             out["constants_per_muscle"] = {
                 mu: {n: _num(v) for n, v in zip(self.param_names, row, strict=True)}
@@ -371,7 +381,7 @@ def _bolen_x(rows: _Rows, emax_pct_rows):
             np.asarray(emax_pct_rows) / 100.0)
 
 
-def _bolen(rows: _Rows, fmax) -> list[PooledModel]:
+def _bolen(rows: _Rows, fmax, bayes=None, sampling=None) -> list[PooledModel]:
     desc = rows.desc
     l0, emax = desc.values["l0_mm"], desc.values[EMAX]
     l0_ref = float(np.exp(np.mean(np.log(l0))))
@@ -402,12 +412,62 @@ def _bolen(rows: _Rows, fmax) -> list[PooledModel]:
                    "fitted; not checked against the paper)", spec.param_names,
                    spec.param_units, lab, 0, pred_lab[0], _held(pred_lab, rows), True, rows,
                    fmax, emax=emax_info)
-    return [fitted, fixed]
+    out = [fitted, fixed]
+    if bayes is not None:
+        out.append(_bolen_hierarchical(rows, fmax, bayes, x_lanes, theta, emax_info,
+                                       sampling or {}))
+    return out
+
+
+def _bolen_hierarchical(rows: _Rows, fmax, key, x_lanes, theta_lanes, emax_info,
+                        sampling: dict):
+    """The hierarchical Bolen law (:mod:`._hierarchical`) on every lane: all muscles, and
+    each muscle left out (its rows weighted 0: its factor keeps its prior). The fit takes
+    every k-th row of the file so that at most :data:`BAYES_MAX_ROWS` remain (the sampler
+    evaluates every row for each walker and step); the held-out muscles are scored on all
+    their rows, by the predictive median and the share of rows inside the 95 % predictive
+    interval."""
+    spec = bolen_spec()
+    lower, upper = (np.asarray(b) for b in spec.bounds)
+    every = max(1, -(-rows.n // BAYES_MAX_ROWS))
+    sub = np.arange(0, rows.n, every)
+    w = np.stack([np.ones(sub.size)] + [(rows.muscle[sub] != i).astype(float)
+                                        for i in range(rows.m)])
+    k_fit, k_pred = jax.random.split(key)
+    post = fit_hierarchical(k_fit, tuple(np.asarray(v)[:, sub] for v in x_lanes),
+                            np.broadcast_to(rows.y[sub], w.shape),
+                            np.broadcast_to(rows.muscle[sub], w.shape), rows.m, theta_lanes,
+                            lower=lower, upper=upper, w=w, **sampling)
+    held = np.empty(rows.n)
+    inside = np.zeros(rows.n, dtype=bool)
+    for i in range(rows.m):
+        sel = rows.muscle == i
+        draws = {"theta": post.theta[1 + i], "tau": post.tau[1 + i],
+                 "sigma_N": post.sigma_N[1 + i]}
+        med, low, high = predictive_interval(jax.random.fold_in(k_pred, i), draws,
+                                             *(np.asarray(v)[1 + i, sel] for v in x_lanes))
+        held[sel] = med
+        inside[sel] = (rows.y[sel] >= low) & (rows.y[sel] <= high)
+    everyone = dataclasses.replace(post, theta=post.theta[0], tau=post.tau[0],
+                                   sigma_N=post.sigma_N[0], scale=post.scale[0])
+    fit_pred = np.asarray(predict_lanes(spec, np.median(post.theta[:1], axis=1),
+                                        tuple(np.asarray(v)[:1] for v in x_lanes)))[0]
+    model = _score("bolen2026_hierarchical", "bolen_hierarchical", None, None,
+                   f"{spec.source}; each muscle's force × exp(τ·z), hierarchical Bayes "
+                   f"(ensemble sampler, every {every} row(s))", spec.param_names,
+                   spec.param_units, np.median(post.theta[0], axis=0), spec.n_params + 2,
+                   fit_pred, held, True, rows, fmax, emax=emax_info,
+                   posterior=everyone.to_dict())
+    muscles = tuple(m | {"lomo_coverage_95": float(np.mean(inside[rows.muscle == i]))}
+                    for i, m in enumerate(model.muscles))
+    return dataclasses.replace(model, muscles=muscles, lomo_coverage_95=float(
+        np.mean([m["lomo_coverage_95"] for m in muscles])))
 
 
 def compare_pooled(bench: BenchData, models=("sarosi",), *, describe=("l0_mm",),
                    roles: tuple[str, ...] | None = None, kinds=POOLED_KINDS,
-                   bolen: bool = True, progress=None) -> PooledComparison:
+                   bolen: bool = True, bayes=None, sampling: dict | None = None,
+                   progress=None) -> PooledComparison:
     """Fit every pooled model of ``bench``'s muscles and rank them by LOMO RMSE (module
     text).
 
@@ -421,6 +481,11 @@ def compare_pooled(bench: BenchData, models=("sarosi",), *, describe=("l0_mm",),
             (:func:`._spec.parse_roles`); without it that model is not fitted.
         kinds: which of :data:`POOLED_KINDS` to fit.
         bolen: also the Bolen et al. 2026 law, where the file gives ``l620_mm``.
+        bayes: a PRNG key: also the hierarchical Bayesian Bolen law
+            (``bolen2026_hierarchical``, :mod:`._hierarchical`; minutes of sampling on a
+            file of thousands of rows).
+        sampling: the sampler's settings (``n_walkers``, ``n_burn``, ``n_draws``, ``thin``
+            of :func:`._hierarchical.fit_hierarchical`).
 
     Raises:
         BenchDataError: fewer than :data:`MIN_MUSCLES` muscles, a muscle without l0, a bad
@@ -456,7 +521,7 @@ def compare_pooled(bench: BenchData, models=("sarosi",), *, describe=("l0_mm",),
     if bolen:
         if EMAX in desc.values:
             say("pooled bolen2026: the normalized law, fitted and at the lab code's values")
-            out += _bolen(rows, fmax)
+            out += _bolen(rows, fmax, bayes, sampling)
         else:
             skipped.append(("bolen2026", "the law needs each muscle's maximal contraction "
                                          "(an l620_mm column: its length at 620 kPa)"))

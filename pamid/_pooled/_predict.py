@@ -4,12 +4,15 @@
 --pooled`` writes (:meth:`._lomo.PooledModel.to_dict`; the whole compare.json works too),
 evaluates the pooled law at the new muscle's descriptors on a grid of pressures and
 contractions, and gives each point the predictive interval of that entry's ``"spread"``
-(F̂ ± √((z·σ)² + (t·√(1 + 1/M)·τ·F̂)²), calibrated on the held-out muscles' residuals: the spread of
-muscles about the law and the noise within one). A model with per-muscle constants predicts
-with their mean; ``<base>_nearest`` with the constants of the tested muscle nearest in
-ln l0; the Bolen law with ε_max from its line in ln l0 (``"emax_law"``) unless it is given.
-A descriptor the fitted muscles did not vary (their one diameter) must match: the fit says
-nothing of another value of it.
+(F̂ ± √((z·σ)² + (t·√(1 + 1/M)·τ·F̂)²), calibrated on the held-out muscles' residuals: the
+spread of muscles about the law and the noise within one). The hierarchical Bayesian model
+(``bolen2026_hierarchical``) gives the median and the 2.5/97.5 % quantiles of its posterior
+predictive instead: each stored posterior draw's law times a new muscle's factor
+exp(τ·z), plus noise. A model with per-muscle constants predicts with their mean;
+``<base>_nearest`` with the constants of the tested muscle nearest in ln l0; the Bolen law
+with ε_max from its line in ln l0 (``"emax_law"``) unless it is given. A descriptor the
+fitted muscles did not vary (their one diameter) must match: the fit says nothing of another
+value of it. Where the law gives a negative force the muscle is slack: 0 N.
 """
 
 from __future__ import annotations
@@ -17,12 +20,14 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
 from .._fit._spec import get_model
 from ._descriptors import EMAX
+from ._hierarchical import predictive_interval
 from ._lomo import bolen_spec, half_width
 from ._spec import mean_per_muscle, pooled_spec
 
@@ -88,7 +93,7 @@ def pick_entry(payload: dict, model: str | None = None) -> dict:
 
 def predict_muscle(entry: dict, *, l0_mm: float, descriptors: dict[str, float] | None = None,
                    pressure_kPa=DEFAULT_PRESSURES_KPA, contraction_pct=None,
-                   points: bool = False) -> MusclePrediction:
+                   points: bool = False, key=None) -> MusclePrediction:
     """Predict the force map of a new muscle of resting length ``l0_mm`` (module text).
 
     Args:
@@ -100,11 +105,14 @@ def predict_muscle(entry: dict, *, l0_mm: float, descriptors: dict[str, float] |
             else to the fitted data's largest contraction, :data:`N_CONTRACTIONS` points).
         points: predict at the pairs (pressure_kPa[i], contraction_pct[i]) instead of on
             their grid (to score a measured muscle's rows).
+        key: PRNG key of the posterior predictive's draws (a hierarchical model only;
+            default ``jax.random.key(0)``).
 
     Raises:
         ValueError: a descriptor the model needs is missing or not positive, or one the
             fitted muscles held fixed is given another value.
     """
+    key = jax.random.key(0) if key is None else key
     given = {"l0_mm": float(l0_mm), **{k: float(v) for k, v in (descriptors or {}).items()
                                         if v is not None}}
     for name, value in given.items():
@@ -146,10 +154,17 @@ def predict_muscle(entry: dict, *, l0_mm: float, descriptors: dict[str, float] |
         p, k = (a.ravel() for a in np.meshgrid(p, k, indexing="ij"))
     elif p.shape != k.shape:
         raise ValueError("points=True takes one pressure per contraction")
-    raw = _evaluate(entry, given, p, k)
-    half = half_width(entry["spread"], raw)
+    if entry.get("posterior") is not None:  # hierarchical Bayes: the posterior predictive
+        raw, low, high = predictive_interval(
+            key, entry["posterior"], p, k / 100.0, np.full(p.shape, given["l0_mm"]),
+            np.full(p.shape, given[EMAX] / 100.0),
+            level=float(entry["spread"].get("level", 0.95)))
+    else:
+        raw = _evaluate(entry, given, p, k)
+        half = half_width(entry["spread"], raw)
+        low, high = raw - half, raw + half
     # A braided muscle pulls; where the law gives less than 0 it is slack: 0 N.
-    force, low, high = (np.maximum(v, 0.0) for v in (raw, raw - half, raw + half))
+    force, low, high = (np.maximum(v, 0.0) for v in (raw, low, high))
     if np.any(raw < 0):
         notes.append("where the law gives a negative force the muscle is slack: shown as 0 N")
     shown = {name: given[name] for name in ("l0_mm", *d["used"], *d["constant"], EMAX)
