@@ -48,6 +48,9 @@ JAX arrays), and check less than the workflows do. ::
   feature columns and folds), whose ``evaluate(sets)`` refits candidate sets (set × muscle
   × fold, one batched Levenberg–Marquardt call of at most :data:`DIAGNOSIS_MAX_STEPS`
   steps per lane).
+* Pooled models: the hierarchical Bayesian Bolen law of ``pamid.compare_pooled(...,
+  bayes=key)`` on stacked data sets (:func:`fit_hierarchical`, one ensemble each) and a new
+  muscle's posterior predictive interval (:func:`hierarchical_predictive`).
 """
 
 from ._data._curves import Curves, find_curves
@@ -76,6 +79,8 @@ from ._fit._variable_projection import (
     sarosi_variable_projection,
     sarosi_variable_projection_start,
 )
+from ._pooled._hierarchical import fit_hierarchical
+from ._pooled._hierarchical import predictive_interval as hierarchical_predictive
 from ._sampling._mcmc import (
     AUTO_SAMPLER,
     DE_FRACTION,
@@ -104,4 +109,6 @@ __all__ = [
     "integrated_time", "numpy_log_prob", "walker_log_prob",
     # Diagnosis.
     "DIAGNOSIS_MAX_STEPS", "StaticDiagnosisProblem",
+    # Pooled models.
+    "fit_hierarchical", "hierarchical_predictive",
 ]
