@@ -186,7 +186,7 @@ def test_no_note_for_independent_noise(tmp_path):
 
 
 def test_table_names_the_interval_and_why(ar1_fit):
-    from pamid._cli import _format_table
+    from pamid._commands.fit import fit_table as _format_table
 
     table = _format_table(ar1_fit)
     first = table.split("\n\n")[0]
@@ -212,7 +212,7 @@ def test_correlated_residual_shows_the_cluster_interval_by_default(tmp_path):
     """Issue 32, item 11: with the default intervals, a muscle whose residual is correlated
     shows the cluster interval (the JSON's ci95 and se, the table's first columns) and
     says so; Wald's stays in the JSON as ci95_wald and se_wald."""
-    from pamid._cli import _format_table
+    from pamid._commands.fit import fit_table as _format_table
 
     result = fit_least_squares(_sarosi_bench(tmp_path, 0.8), "sarosi")
     assert result.interval_of == ("cluster",) and result.interval_shown == "cluster"
@@ -247,7 +247,7 @@ def test_white_residual_shows_wald_by_default(tmp_path):
     assert muscle["interval"] == "wald-t" and muscle["interval_note"] is None
     assert muscle["params"]["a1"]["ci95"] == muscle["params"]["a1"]["ci95_wald"]
     assert "ci95_cluster" not in muscle["params"]["a1"]
-    from pamid._cli import _format_table
+    from pamid._commands.fit import fit_table as _format_table
 
     table = _format_table(result)
     assert "95% low" in table and "Wald low" not in table and "cluster low" not in table
