@@ -2,7 +2,7 @@
 populations with a known law and a known spread between muscles, the posterior holds the
 law's constants and the spread, and a new muscle's predictive interval is wider than the
 noise alone and centred on it. Coverage on held-out virtual muscles is measured in
-experiments/pooled_muscles.py --bayes-coverage (experiments/README.md §11), not here: it
+experiments/pooled_muscles.py --coverage 30 (experiments/README.md §11), not here: it
 takes minutes of sampling."""
 
 from __future__ import annotations

@@ -17,8 +17,8 @@ the population spread, the uncertainty of θ, τ and σ, and the noise.
 The sampler sees ln s_i itself for a muscle with rows (centred: hundreds of rows pin s_i,
 and ln s_i = τ·z_i would make τ and z_i a curved ridge that an affine-invariant ensemble
 crosses slowly: with it, 1,500 burn-in steps left τ's 97.5 % quantile at 0.086 where 6,000
-reached 0.11 on a virtual population; centred, 0.138 and 0.139) and z_i for one without (a muscle left out: its
-factor has only its prior, and the non-centred form has no funnel).
+reached 0.11 on a virtual population; centred, 0.138 and 0.139) and z_i for one without (a
+muscle left out: its factor has only its prior, and the non-centred form has no funnel).
 
 Sampler: pamid's affine-invariant ensemble (:func:`pamid._sampling._ensemble.run_ensembles`,
 stretch and differential-evolution moves: no gradients, no tuning), started in a small ball
