@@ -13,6 +13,7 @@ from .._inference import scale_covariance
 from . import _correlated, _intervals
 from ._batch import FitData, pack_rows
 from ._least_squares import DEFAULT_STARTS, bounds_arrays, first_solve, fit_lanes, statistics
+from ._solvers import as_solver
 from ._spec import ModelSpec, get_model
 
 INTERVAL_KINDS = ("wald", "profile", "bootstrap", "cluster", "hac")
@@ -434,7 +435,8 @@ def fit_least_squares(
         solver: "gauss-newton" (default; for the Sárosi model the written-out batched
             Gauss–Newton of ``_gauss_newton.py`` with its own start, otherwise
             optimistix's), "levenberg-marquardt", "variable-projection",
-            "jaxopt-levenberg-marquardt".
+            "jaxopt-levenberg-marquardt", or a solver object of ``pamid._fit._solvers``
+            (solvers are values: :class:`~pamid._fit._solvers.Solver`).
         intervals: any of "wald" (always computed), "profile", "bootstrap", "cluster"
             (cluster-robust CR3 by curve, t on G − 1: holds under residuals correlated
             within curves) and "hac" (Newey–West within trials); see ``_correlated.py``.
@@ -477,6 +479,7 @@ def fit_least_squares(
         names = muscles if muscles is not None else tuple([None] * data.n_muscles)
         trials = bench = None
 
+    solver = as_solver(solver)
     lanes = fit_lanes(spec, data, solver=solver, bounds=bounds, starts=starts,
                       with_statistics=True)
     theta, steps = lanes.theta, lanes.steps
@@ -532,7 +535,7 @@ def fit_least_squares(
         r=corr,
         converged=converged,
         n_steps=steps,
-        solver=solver if not lanes.left_bounds.any() else f"{solver}+bounds",
+        solver=solver.name if not lanes.left_bounds.any() else f"{solver.name}+bounds",
         profile_ok=profile_ok,
         bootstrap_converged=boot_ok,
         spec=spec,

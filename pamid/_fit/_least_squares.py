@@ -28,69 +28,18 @@ import numpy as np
 
 from .._inference import unscaled_covariance
 from ._batch import FitData, map_lanes, padded_rows
+from ._solvers import SOLVER_CLASSES, Solver, as_solver, residuals  # noqa: F401
 from ._spec import ModelSpec, builtin_key
 
-SOLVERS = (
-    "gauss-newton",
-    "levenberg-marquardt",
-    "variable-projection",
-    "jaxopt-levenberg-marquardt",
-)
-
-
-def residuals(spec: ModelSpec, theta, x, y, w):
-    """Weighted residuals w^½·(model − data) of one muscle."""
-    return jnp.sqrt(w) * (spec.predict(theta, x) - y)
-
-
-def _optx_solver(name, rtol, atol):
-    import optimistix as optx  # imported here: the default Sárosi path does not need it
-
-    if name == "gauss-newton":
-        return optx.GaussNewton(rtol=rtol, atol=atol)
-    return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+#: The solvers' names (``--solver``); the solvers themselves are values (``_solvers``).
+SOLVERS = tuple(SOLVER_CLASSES)
 
 
 @functools.partial(jax.jit, static_argnames=("spec", "solver", "max_steps", "rtol", "atol"))
 def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
-    """Solve every lane from its start; returns theta, success flag and step count per lane."""
-    if solver == "variable-projection":
-        theta, _, width = spec.fast_path.variable_projection(x, y, w, n_refine=max_steps)
-        # Converged: the bracket around a3 has shrunk to the tolerance.
-        ok = jnp.all(jnp.isfinite(theta), axis=-1) & (width < jnp.maximum(rtol, 1e-8))
-        return theta, ok, jnp.full(theta.shape[0], max_steps)
-
-    if solver == "jaxopt-levenberg-marquardt":
-        import jaxopt  # imported here: unmaintained upstream, and it warns on import
-
-        def one(theta0, x, y, w):
-            lm = jaxopt.LevenbergMarquardt(
-                lambda th: residuals(spec, th, x, y, w),
-                stop_criterion="madsen-nielsen",
-                maxiter=max_steps,
-                xtol=rtol,
-                gtol=atol,
-            )
-            out = lm.run(theta0)
-            return out.params, out.state.iter_num < max_steps, out.state.iter_num
-
-        return jax.vmap(one)(theta0, x, y, w)
-
-    import optimistix as optx
-
-    def one(theta0, x, y, w):
-        sol = optx.least_squares(
-            lambda th, args: residuals(spec, th, *args),
-            _optx_solver(solver, rtol, atol),
-            theta0,
-            args=(x, y, w),
-            max_steps=max_steps,
-            throw=False,
-        )
-        ok = sol.result == optx.RESULTS.successful
-        return sol.value, ok, sol.stats["num_steps"]
-
-    return jax.vmap(one)(theta0, x, y, w)
+    """Solve every lane from its start by ``solver`` (a :class:`Solver` or its name);
+    returns theta, success flag and step count per lane."""
+    return as_solver(solver).run(spec, theta0, x, y, w, max_steps, rtol, atol)
 
 
 @functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
@@ -158,15 +107,12 @@ def solve(
     """
     if with_statistics and bounds is not None:
         raise ValueError("with_statistics is for fits without bounds")
-    if solver not in SOLVERS:
-        raise ValueError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    solver = as_solver(solver)
+    solver.check(spec)
+    kernel = solver.kernel(spec)
     fast = spec.fast_path
-    if solver == "variable-projection" and (fast is None or fast.variable_projection is None):
-        raise ValueError(f"variable projection is written out for the Sárosi model only, "
-                         f"not for {spec.name}; use the gauss-newton or levenberg-marquardt "
-                         "solver")
-    if solver == "gauss-newton" and fast is not None and bounds is None:
-        # The model's registered written-out Gauss–Newton, with its own start.
+    if kernel is not None and bounds is None:
+        # The model's registered written-out solver, with its own start.
         start = () if theta0 is None else (_host(theta0),)
         if with_statistics:
             out = map_lanes(
@@ -178,7 +124,7 @@ def solve(
             )
         else:
             out = map_lanes(
-                lambda x, y, w, *t0: fast.gauss_newton(
+                lambda x, y, w, *t0: kernel(
                     x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
                 ),
                 data.x, data.y, data.w, *start,
@@ -204,7 +150,7 @@ def solve(
         theta, ok, steps = map_lanes(
             lambda t0, x, y, w: _solve_batch(spec, solver, t0, x, y, w, max_steps, rtol, atol),
             theta0, data.x, data.y, data.w,
-            cache_key=_key("solve", spec, solver, max_steps, rtol, atol),
+            cache_key=_key("solve", spec, solver.name, max_steps, rtol, atol),
         )
     out = _solved(theta, ok, steps)
     return (*out, None) if with_statistics else out
@@ -618,13 +564,12 @@ def first_solve(spec: ModelSpec, data: FitData, *, solver: str, starts: int, the
     Returns ``((theta, ok, steps), statistics or None, linear, several)``: ``several`` when
     the lanes already come from several starts (or were solved), so that no second try
     from other starts would help."""
-    linear = (theta0 is None and solver in ("gauss-newton", "levenberg-marquardt")
-              and _linear_in_all(spec))
+    solver = as_solver(solver)
+    linear = theta0 is None and solver.restarts and _linear_in_all(spec)
     out = None
     if linear:
         out = _linear_fit(spec, data)
-    elif theta0 is None and starts > 1 and not (solver == "gauss-newton"
-                                                and spec.fast_path is not None):
+    elif theta0 is None and starts > 1 and solver.kernel(spec) is None:
         out = _multi_start(spec, data, solver, starts, max_steps, rtol, atol, *bounds)
     if out is not None:
         return out, None, linear, True
@@ -654,6 +599,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     constants where it can (:func:`solve`); they are kept in ``LaneFit.statistics`` when no
     lane changed after it.
     """
+    solver = as_solver(solver)
     k = DEFAULT_STARTS if starts is None else max(int(starts), 1)
     k_retry = max(k, RETRY_STARTS)
     lower, upper = bounds_arrays(spec, bounds)
@@ -672,7 +618,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
     out_now = outside(theta)
     retry = np.flatnonzero(~ok | out_now)
     if (retry.size and theta0 is None and not linear and not (several and k >= k_retry)
-            and solver in ("gauss-newton", "levenberg-marquardt")):
+            and solver.restarts):
         sub = _take_lanes(data, retry)
         cands = start_candidates(spec, sub, bounds)
         if cands is not None:

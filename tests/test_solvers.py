@@ -1,0 +1,57 @@
+"""Solvers are values (``pamid._fit._solvers``): a name and its object give the same fit, a
+solver written by a user (one class) fits through the one entry, and names that are not
+solvers are refused with the list of those that are."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+import pamid
+from pamid._fit._solvers import (
+    SOLVER_CLASSES,
+    GaussNewton,
+    LevenbergMarquardt,
+    Solver,
+    _optimistix,
+    as_solver,
+)
+
+
+class Dogleg(Solver):
+    """optimistix's Dogleg trust region: a solver pamid does not ship, in one class."""
+
+    name: ClassVar[str] = "dogleg"
+    restarts: ClassVar[bool] = True
+
+    def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
+        import optimistix as optx
+
+        return _optimistix(optx.Dogleg(rtol=rtol, atol=atol), spec, theta0, x, y, w, max_steps)
+
+
+def test_names_and_objects_are_one_solver():
+    for name, cls in SOLVER_CLASSES.items():
+        assert as_solver(name) == cls() and as_solver(cls()) == cls() and cls.name == name
+    assert hash(GaussNewton()) == hash(as_solver("gauss-newton"))  # a static jit argument
+    with pytest.raises(ValueError, match="unknown solver 'newton'.*gauss-newton"):
+        as_solver("newton")
+
+
+def test_an_object_fits_as_its_name_does(small_bench):
+    data = small_bench.data
+    by_name = pamid.fit_least_squares(data, solver="levenberg-marquardt")
+    by_value = pamid.fit_least_squares(data, solver=LevenbergMarquardt())
+    np.testing.assert_array_equal(by_value.theta, by_name.theta)
+    assert by_value.solver == by_name.solver == "levenberg-marquardt"
+
+
+def test_a_users_solver_reaches_the_same_optimum(small_bench):
+    data = small_bench.data
+    ref = pamid.fit_least_squares(data)  # Sárosi's written-out Gauss–Newton
+    fit = pamid.fit_least_squares(data, solver=Dogleg())
+    assert fit.solver == "dogleg" and np.all(fit.converged)
+    np.testing.assert_allclose(fit.theta, ref.theta, rtol=1e-6)
+    np.testing.assert_allclose(fit.sse, ref.sse, rtol=1e-9)
