@@ -26,8 +26,6 @@ class FastPath:
     generic ones (``_least_squares.solve``, ``statistics``, ``_intervals.profile``).
 
     Attributes:
-        key: a name for the kernels, the same in every process (the key of their exported
-            programs).
         gauss_newton: ``(x, y, w, [theta0], *, max_steps, rtol, atol) -> (theta, ok,
             steps)`` for a batch, with its own start when no ``theta0`` is given.
         statistics: ``(theta, x, y, w) -> (sse, (JᵀJ)⁻¹, corr, n, full_rank)`` for a batch.
@@ -39,12 +37,17 @@ class FastPath:
             intervals' Newton iteration, or None.
     """
 
-    key: str
     gauss_newton: Callable
     statistics: Callable
     statistics_take_curve: bool = False
     variable_projection: Callable | None = None
     profile_derivatives: Callable | None = None
+
+    @property
+    def key(self) -> str:
+        """A name for the kernels, the same in every process (the key of their exported
+        programs): where the Gauss–Newton kernel is defined."""
+        return f"{self.gauss_newton.__module__}.{self.gauss_newton.__qualname__}"
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -289,7 +292,7 @@ def _sarosi_fast_path() -> FastPath:
     from ._gauss_newton import sarosi_derivatives, sarosi_gauss_newton, sarosi_statistics
     from ._variable_projection import sarosi_variable_projection
 
-    return FastPath(key="sarosi", gauss_newton=sarosi_gauss_newton,
+    return FastPath(gauss_newton=sarosi_gauss_newton,
                     statistics=sarosi_statistics, statistics_take_curve=True,
                     variable_projection=sarosi_variable_projection,
                     profile_derivatives=sarosi_derivatives)
@@ -319,6 +322,12 @@ CULLINAN_DYNAMIC = dataclasses.replace(
 #: pamid's own models by name (``--model NAME``).
 MODELS: dict[str, ModelSpec] = {"sarosi": SAROSI, "cullinan": CULLINAN}
 
+#: A model's variants fitted where the data carry a further input: (column, spec) pairs
+#: tried in order (Cullinan eq. 3 with its damping constant G where the file has a
+#: velocity).
+VARIANTS: dict[str, tuple[tuple[str, ModelSpec], ...]] = {
+    "cullinan": (("velocity_mm_s", CULLINAN_DYNAMIC),)}
+
 
 def register_model(model, *, name: str | None = None, **kwargs) -> ModelSpec:
     """Add a :class:`~pamid.ForceModel` to pamid's own models (``--model NAME``)."""
@@ -338,7 +347,7 @@ def model_names() -> tuple[str, ...]:
 def builtin_key(spec: ModelSpec) -> tuple | None:
     """A name for one of pamid's own specs that is the same in every process (the key of
     its exported programs, ``_export_cache``); None for any other spec."""
-    for known in (*MODELS.values(), CULLINAN_DYNAMIC):
+    for known in (*MODELS.values(), *(v for pairs in VARIANTS.values() for _, v in pairs)):
         if spec is known:
             return (known.name, known.source)
     return None
@@ -362,8 +371,9 @@ def get_model(name, frame=None) -> ModelSpec:
         raise ValueError(
             f"unknown model {name!r}; choose one of {sorted(MODELS)}, or give "
             "path/to/file.py:ClassName for your own pamid.ForceModel") from None
-    if spec is CULLINAN and frame is not None and "velocity_mm_s" in frame:
-        return CULLINAN_DYNAMIC
+    for column, variant in VARIANTS.get(name, ()) if frame is not None else ():
+        if column in frame:
+            return variant
     return spec
 
 

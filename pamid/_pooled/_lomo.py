@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
-from scipy import optimize, stats
+from scipy import optimize
 
 from .._data._bench import BenchData
 from .._errors import BenchDataError
@@ -56,6 +56,7 @@ from .._fit._batch import FitData
 from .._fit._compare import predict_lanes
 from .._fit._least_squares import fit_lanes
 from .._fit._spec import ModelSpec, get_model, spec_from_model
+from .._inference import t_critical
 from .._models._bolen import HUNT_LAB_CODE_10MM, Bolen2026
 from ._descriptors import EMAX, Descriptors, muscle_descriptors
 from ._hierarchical import fit_hierarchical, predictive_interval
@@ -122,8 +123,8 @@ def fit_spread(resid, pred, muscle, n_muscles: int, level: float = LEVEL) -> Pre
     k = int(np.count_nonzero(counts))
     return PredictiveSpread(
         sigma_N=math.sqrt(s2 * scale), tau=math.sqrt(tau2),
-        t_quantile=float(stats.t.ppf(0.5 + level / 2, max(k - 1, 1))),
-        z=float(stats.norm.ppf(0.5 + level / 2)), n_muscles=k)
+        t_quantile=float(t_critical(max(k - 1, 1), level)),
+        z=float(t_critical(math.inf, level)), n_muscles=k)  # t with ∞ dof: the normal
 
 
 def emax_law(l0_mm, emax_pct, l0_ref_mm: float) -> tuple[float, float]:
