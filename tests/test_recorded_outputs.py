@@ -1,0 +1,76 @@
+"""The commands' JSON on the bundled file, against outputs recorded before a refactor (issue
+33: "fit, compare … give the same JSON as before to 1e-8 relative"). A change that moves a
+number on purpose records the outputs again and says why in its commit:
+
+    PAMID_RECORD_OUTPUTS=1 .venv/bin/python -m pytest -q tests/test_recorded_outputs.py
+
+Every key, string, flag and null must match; numbers to 1e-8 relative (1e-10 absolute near
+zero). Only what differs from run to run is left out: the wall time and the input's path.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import pytest
+
+from pamid._cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+BUNDLED = ROOT / "pamid" / "data" / "sarosi_dmsp20_400_virtual.csv"
+RECORDED = Path(__file__).resolve().parent / "recorded"
+VOLATILE = {"seconds", "source"}
+RTOL, ATOL = 1e-8, 1e-10
+
+CASES = {
+    "fit_sarosi": ["fit", str(BUNDLED), "--json"],
+    "fit_cullinan": ["fit", str(BUNDLED), "--json", "--model", "cullinan"],
+    "fit_lm_profile_cluster": ["fit", str(BUNDLED), "--json", "--solver", "levenberg-marquardt",
+                               "--intervals", "wald,profile,cluster"],
+    "compare_two": ["compare", str(BUNDLED), "--json", "--models", "sarosi,cullinan"],
+}
+
+
+def _differences(got, want, where="") -> list[str]:
+    if isinstance(want, dict):
+        if not isinstance(got, dict) or set(got) - VOLATILE != set(want) - VOLATILE:
+            return [f"{where}: keys {sorted(got) if isinstance(got, dict) else got!r} "
+                    f"!= {sorted(want)}"]
+        return [d for k in want if k not in VOLATILE
+                for d in _differences(got[k], want[k], f"{where}.{k}")]
+    if isinstance(want, list):
+        if not isinstance(got, list) or len(got) != len(want):
+            return [f"{where}: {got!r} != {want!r}"]
+        return [d for i, (g, w) in enumerate(zip(got, want)) for d in
+                _differences(g, w, f"{where}[{i}]")]
+    if isinstance(want, float) and isinstance(got, (int, float)) and not isinstance(got, bool):
+        ok = math.isclose(got, want, rel_tol=RTOL, abs_tol=ATOL)
+        return [] if ok else [f"{where}: {got!r} != {want!r}"]
+    return [] if got == want and type(got) is type(want) else [f"{where}: {got!r} != {want!r}"]
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_json_as_recorded(name, capsys):
+    code = main(CASES[name])
+    payload = json.loads(capsys.readouterr().out)
+    path = RECORDED / f"{name}.json"
+    if os.environ.get("PAMID_RECORD_OUTPUTS") == "1":
+        RECORDED.mkdir(exist_ok=True)
+        kept = {k: v for k, v in payload.items() if k not in VOLATILE}
+        path.write_text(json.dumps({"exit_code": code, "json": kept}, indent=1) + "\n")
+    recorded = json.loads(path.read_text())
+    assert code == recorded["exit_code"]
+    diffs = _differences(payload, recorded["json"])
+    assert diffs == [], "\n".join(diffs[:20])
+
+
+def test_the_comparison_sees_a_difference():
+    want = {"a": [1.0, {"b": "x"}], "seconds": 3.0}
+    assert _differences({"a": [1.0, {"b": "x"}], "seconds": 9.0}, want) == []
+    assert _differences({"a": [1.0 + 1e-6, {"b": "x"}]}, want)
+    assert _differences({"a": [1.0, {"b": "y"}]}, want)
+    assert _differences({"a": [1.0, {"b": "x"}], "c": 1}, want)
+    assert _differences({"a": [None, {"b": "x"}]}, want)
