@@ -169,3 +169,43 @@ def test_constant_descriptor_is_left_out_with_a_note(population_file):
     # l620_mm, constant here neither, is not a descriptor.
     desc = muscle_descriptors(bench)
     assert desc.constant == {"diameter_mm": 10.0} and desc.notes == ()
+
+
+def _two_diameters(tmp_path) -> Path:
+    """Four 10 mm muscles of the Bolen law and four of the same lengths four times as
+    strong, logged as 20 mm (force ∝ D0² at one pressure and strain, Chou & Hannaford 1996)."""
+    l0 = tuple(np.geomspace(100.0, 400.0, 4))
+    small = simulate_population_bench(jax.random.key(1), l0, spread=0.03, noise_N=2.0)
+    big = simulate_population_bench(jax.random.key(2), l0, spread=0.03, noise_N=2.0,
+                                    diameter_mm=20.0, muscle_ids=[f"W{i}" for i in range(4)])
+    big["force_N"] *= 4.0
+    path = tmp_path / "two_diameters.csv"
+    pd.concat([small, big]).to_csv(path, index=False)
+    return path
+
+
+def test_several_diameters_nearest_takes_the_same_diameter_and_bolen_says_why_not(tmp_path):
+    """A 100 mm muscle of 10 mm takes the constants of the nearest 10 mm muscle, not of the
+    100 mm one of 20 mm (which predicted it at 415 N of RMSE); the Bolen law, whose F620(l0)
+    is fitted per diameter, is skipped with the reason, not fitted across diameters."""
+    bench = pamid.load_bench(_two_diameters(tmp_path))
+    out = pamid.compare_pooled(bench, describe=("l0_mm", "diameter_mm"), kinds=("nearest",))
+    (nearest,) = out.models
+    by_muscle = {x["muscle"]: x["lomo_rmse_N"] for x in nearest.muscles}
+    assert by_muscle["V00"] < 40.0 and by_muscle["W0"] < 4 * 40.0
+    skipped = dict(out.skipped)
+    assert "10, 20 mm" in skipped["bolen2026"]
+    table = pamid.report.pooled_table(out)
+    assert "V00" in table and "W0" in table  # muscles of one length told apart by name
+
+
+def test_the_lab_codes_10_mm_coefficients_are_not_used_for_other_diameters(tmp_path):
+    l0 = tuple(np.geomspace(100.0, 400.0, 4))
+    big = simulate_population_bench(jax.random.key(3), l0, spread=0.03, noise_N=2.0,
+                                    diameter_mm=20.0)
+    big["force_N"] *= 4.0
+    path = tmp_path / "twenty.csv"
+    big.to_csv(path, index=False)
+    out = pamid.compare_pooled(pamid.load_bench(path), kinds=())
+    assert [m.model for m in out.models] == ["bolen2026"]
+    assert "10 mm" in dict(out.skipped)["bolen2026_lab_code"]

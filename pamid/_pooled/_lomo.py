@@ -352,15 +352,44 @@ def _pooled_base(rows: _Rows, base: ModelSpec, roles, kind: str, fmax) -> Pooled
                   lomo_lanes_converged=int(np.sum(fit.ok[1:])))
 
 
+def _per_muscle(rows: _Rows, column: str) -> np.ndarray | None:
+    """A per-muscle column of the file as (M,) values (each muscle's first row), or None."""
+    frame = rows.bench.frame
+    if column not in frame:
+        return None
+    first = pd.Series(frame[column].to_numpy()).groupby(rows.muscle).first()
+    return pd.to_numeric(first.reindex(range(rows.m)), errors="coerce").to_numpy(np.float64)
+
+
+def _kinship(rows: _Rows) -> list[np.ndarray]:
+    """The muscles' descriptors other than their length (the diameter where the file logs
+    it, and any other described one): what a lab matches before it looks at the length."""
+    out = [rows.desc.values[n] for n in rows.desc.described
+           if n not in ("l0_mm", "l620_mm", EMAX)]
+    diameter = _per_muscle(rows, "diameter_mm")
+    if diameter is not None and "diameter_mm" not in rows.desc.values:
+        out.append(diameter)
+    return out
+
+
 def _nearest(rows: _Rows, base: ModelSpec, fmax) -> PooledModel:
     per = fit_lanes(base, bench_to_fit_data(rows.bench, base, curves=False))
     theta = np.asarray(per.theta, np.float64)
     ln_l0 = np.log(rows.desc.values["l0_mm"])
     x = base.x_from_frame(rows.bench.frame, rows.bench.path)
+    kin = _kinship(rows)
     nearest = np.empty(rows.m, dtype=int)
     for i in range(rows.m):
+        # The nearest length among the muscles of the same diameter (and other
+        # descriptors); among all where none shares them.
+        same = np.ones(rows.m, bool)
+        for v in kin:
+            same &= np.isclose(v, v[i], rtol=1e-9, atol=0.0)
+        same[i] = False
         d = np.abs(ln_l0 - ln_l0[i])
         d[i] = np.inf
+        if same.any():
+            d = np.where(same, d, np.inf)
         nearest[i] = int(np.argmin(d))
     pred_own = np.asarray(base.predict(jnp.asarray(theta[rows.muscle]),
                                        tuple(jnp.asarray(xi) for xi in x)))
@@ -368,7 +397,7 @@ def _nearest(rows: _Rows, base: ModelSpec, fmax) -> PooledModel:
                                    tuple(jnp.asarray(xi) for xi in x)))
     return _score(f"{base.name}_nearest", "nearest", base.name, None,
                   f"{base.source}, fitted per muscle; an untested muscle takes the "
-                  "constants of the tested one nearest in ln l0",
+                  "constants of the tested one nearest in ln l0 of the same diameter",
                   base.param_names, base.param_units, np.full(base.n_params, np.nan),
                   rows.m * base.n_params, pred_own, held, bool(np.all(per.ok)),
                   rows, fmax, theta_per_muscle=theta)
@@ -519,10 +548,25 @@ def compare_pooled(bench: BenchData, models=("sarosi",), *, describe=("l0_mm",),
                 raise ValueError(f"roles give {len(r)} constants; {base.name} has "
                                  f"{base.n_params}")
             out.append(_pooled_base(rows, base, r, kind, fmax))
+    diameters = _per_muscle(rows, "diameter_mm")
+    sizes = (set() if diameters is None else
+             {float(d) for d in diameters[np.isfinite(diameters)]})
     if bolen:
-        if EMAX in desc.values:
+        if len(sizes) > 1:
+            skipped.append(("bolen2026", "the law's F620(l0) is fitted for one diameter at a "
+                                         "time (Bolen et al. 2026 fit their 10 mm and 20 mm "
+                                         "muscles apart); this file has muscles of "
+                                         f"{', '.join(f'{d:g}' for d in sorted(sizes))} mm: "
+                                         "compare each diameter's muscles on their own"))
+        elif EMAX in desc.values:
             say("pooled bolen2026: the normalized law, fitted and at the lab code's values")
-            out += _bolen(rows, fmax, bayes, sampling)
+            models = _bolen(rows, fmax, bayes, sampling)
+            if sizes and sizes != {10.0}:
+                models = [p for p in models if p.model != "bolen2026_lab_code"]
+                skipped.append(("bolen2026_lab_code", "the Hunt lab code's coefficients are "
+                                "for 10 mm muscles; these are "
+                                f"{', '.join(f'{d:g}' for d in sorted(sizes))} mm"))
+            out += models
         else:
             skipped.append(("bolen2026", "the law needs each muscle's maximal contraction "
                                          "(an l620_mm column: its length at 620 kPa)"))

@@ -20,8 +20,11 @@ def pooled_table(result) -> str:
     """Every pooled model, best LOMO RMSE first, with its LOMO RMSE per muscle."""
     muscles = result.muscles
     l0 = result.models[0].descriptors.values["l0_mm"] if result.models else []
+    labels = [f"{v:.0f}mm" for v in l0]
+    if len(set(labels)) < len(labels):  # muscles of one length (several diameters): names
+        labels = [mu[:7] for mu in muscles]
     head = (f"{'model':<22} {'k':>3} {'fit RMSE':>9} {'LOMO RMSE':>10} {'% Fmax':>7} "
-            f"{'cover':>6}  " + " ".join(f"{f'{v:.0f}mm':>7}" for v in l0))
+            f"{'cover':>6}  " + " ".join(f"{label:>7}" for label in labels))
     lines = ["Pooled models, judged on each muscle left out (LOMO): RMSE [N] of its rows "
              "predicted from the other muscles",
              f"descriptors: {', '.join(result.describe)}; muscles: {', '.join(muscles)}",
@@ -52,8 +55,11 @@ def plot_pooled_lomo(result, path=None, *, title: str | None = None):
     for k, m in enumerate(result.models):
         l0 = [x["l0_mm"] for x in m.muscles]
         rm = [x["lomo_rmse_N"] for x in m.muscles]
-        ax.plot(l0, rm, marker=markers[k % len(markers)], color=tab(k % 10), lw=1.2,
-                label=f"{m.model} ({m.lomo_rmse_N:.3g} N)")
+        # Muscles of one length (several diameters) would be joined across diameters:
+        # markers only then.
+        joined = len(set(l0)) == len(l0)
+        ax.plot(l0, rm, marker=markers[k % len(markers)], color=tab(k % 10),
+                lw=1.2 if joined else 0, label=f"{m.model} ({m.lomo_rmse_N:.3g} N)")
     ax.set_xlabel("resting length l0 of the muscle left out [mm]")
     ax.set_ylabel("LOMO RMSE [N]")
     ax.set_ylim(bottom=0)
