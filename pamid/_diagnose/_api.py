@@ -194,8 +194,10 @@ def _check_enough_rows(bench, spec) -> None:
 
 
 def _diagnose_bench(bench, model: str, n_folds: int, progress,
-                    max_rows: int | None = None, bounds=None) -> Diagnosis:
+                    max_rows: int | None = None, bounds=None, shape_check: bool = True
+                    ) -> Diagnosis:
     from .._fit._spec import get_model
+    from ._shape import force_law_shape, shape_suspected
     from ._static import StaticProblem, intervals
 
     rows_total = len(bench.frame)
@@ -217,6 +219,21 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
                             progress=progress, unphysical=problem.unphysical,
                             refresh=problem.refresh_grids)
+    suspects = shape_suspected(problem, result) if shape_check else []
+    shape = (force_law_shape(problem.bench, spec, result, suspects, n_folds=n_folds,
+                             order_is_time=problem.order_is_time, progress=progress)
+             if suspects else None)
+    if shape is not None:
+        # The force law's shape (pamid._diagnose._shape): the effects are diagnosed again
+        # on top of the law that fits, so that none stands in for it.
+        if progress is not None:
+            progress(f"the force law's shape: {shape['law']} fits this file better than "
+                     f"{spec.name} with any effect; diagnosing the effects on top of it")
+        d = _diagnose_bench(problem.bench, shape["law"], n_folds, progress,
+                            shape_check=False)
+        d.force_law_shape, d.model_requested = shape, spec.name
+        d.rows_total, d.subsample = rows_total, note
+        return d
     base, final = result["baseline"], result["final"]
     table = _long_table(problem, base, final)
     covs = [*problem.covariates, "force_N"]
@@ -233,7 +250,9 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
         for i, (m, e) in enumerate(zip(bench.muscles, intervals(problem, final), strict=True))
     ]
     d = build_diagnosis(bench.path, "bench", spec.name, list(bench.muscles), result,
-                        before, after, constants, table, unexplained(after))
+                        before, after, constants, table,
+                        unexplained(after, order_is_time=problem.order_is_time))
+    d.order_is_time = problem.order_is_time
     d.rows_used, d.rows_total, d.subsample = len(bench.frame), rows_total, note
     d.muscles_flagged = [dict(f) for f in problem.flagged]
     d.covariates_not_used = [{"column": c, "why": why}

@@ -23,6 +23,9 @@ UNEXPLAINED_SHARE = 0.02
 #: ... and the time order is unexplained when the residual is not white (p below
 #: UNEXPLAINED_P) and its lag-1 autocorrelation is at least this large in magnitude.
 UNEXPLAINED_RHO1 = 0.1
+#: In a map (rows sorted by the inputs, no time), the covariate that carries a residual not
+#: white in row order is named when its dependence has p below this (:func:`unexplained`).
+CARRIER_P = 0.01
 
 
 @dataclasses.dataclass
@@ -58,6 +61,15 @@ class Diagnosis:
     subsample: str | None = None  # how the subsample was drawn; None for all rows
     #: Numeric columns of the file not used as covariates: [{"column", "why"}].
     covariates_not_used: list[dict] = dataclasses.field(default_factory=list)
+    #: The force law's shape (:mod:`pamid._diagnose._shape`): where the model's misfit was
+    #: the shape of another built-in law, the verdict (that law, the CV RMSEs), and
+    #: ``model`` is that law, the one the effects were diagnosed on; else None.
+    force_law_shape: dict | None = None
+    #: The model asked for (``model`` unless the force law's shape replaced it).
+    model_requested: str | None = None
+    #: Whether the rows' order is a time order; False for a map sorted by its inputs,
+    #: whose unexplained structure is named by its covariate, never ``time_order``.
+    order_is_time: bool = True
     #: Muscles whose baseline fit did not converge: [{"muscle", "status", "why",
     #: "diagnosed"}]; diagnosed: its best fit within bounds (a constant the data do not
     #: determine held on its bound) is diagnosed with the others; else left out.
@@ -86,6 +98,9 @@ class Diagnosis:
             "residual_after": self.residual_after, "unexplained": self.unexplained,
             "covariates_not_used": self.covariates_not_used,
             "muscles_flagged": self.muscles_flagged,
+            "order_is_time": self.order_is_time,
+            "model_requested": self.model_requested or self.model,
+            "force_law_shape": self.force_law_shape,
         })
 
 
@@ -108,12 +123,22 @@ def analyse_residual(table: pd.DataFrame, column: str, covariates: list[str],
             "runs": runs_test(series), "ljung_box": ljung_box(series), "covariates": deps}
 
 
-def unexplained(analysis: dict, *, runs_test_applies: bool = True) -> list[str]:
+def unexplained(analysis: dict, *, runs_test_applies: bool = True,
+                order_is_time: bool = True) -> list[str]:
     """Covariates the final residual still depends on, and ``time_order`` when it is not
     white. ``runs_test_applies=False`` for records read through a coarse encoder: rounding
     to a step holds the residual's sign over the slow parts of the motion (near each turning
-    point), so the runs test rejects even for a perfect model; Ljung–Box still applies."""
-    out = [c for c, d in analysis["covariates"].items()
+    point), so the runs test rejects even for a perfect model; Ljung–Box still applies.
+
+    ``order_is_time=False`` for a map whose rows are sorted by its inputs
+    (:func:`pamid._diagnose._static.order_is_time`): there is no time order to name, and a
+    residual that is not white in row order is named by the covariate that carries it —
+    the one a smooth function of which explains the largest share of the residual's
+    variance, at p < :data:`CARRIER_P` (the whiteness test has already rejected at
+    p < :data:`UNEXPLAINED_P`; this only says where the structure lies) — or not at all
+    when no covariate does."""
+    deps = analysis["covariates"]
+    out = [c for c, d in deps.items()
            if d["p_value"] is not None and np.isfinite(d["p_value"])
            and d["p_value"] < UNEXPLAINED_P
            and d.get("explained_fraction", 1.0) >= UNEXPLAINED_SHARE]
@@ -123,7 +148,15 @@ def unexplained(analysis: dict, *, runs_test_applies: bool = True) -> list[str]:
         runs_test_applies and np.isfinite(runs_p) and runs_p < UNEXPLAINED_P
     )
     if not_white and abs(rho1) >= UNEXPLAINED_RHO1:
-        out.append("time_order")
+        if order_is_time:
+            out.append("time_order")
+        else:
+            carriers = [(d.get("explained_fraction", 0.0), c) for c, d in deps.items()
+                        if c != "direction" and d["p_value"] is not None
+                        and np.isfinite(d["p_value"]) and d["p_value"] < CARRIER_P
+                        and d.get("explained_fraction", 0.0) >= UNEXPLAINED_SHARE]
+            if carriers and max(carriers)[1] not in out:
+                out.append(max(carriers)[1])
     return out
 
 

@@ -59,7 +59,13 @@ from .._effects._definitions import (
 from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
-from .._fit._engine import CONVERGED, levenberg_marquardt
+from .._fit._engine import (
+    CONVERGED,
+    MAX_STEPS,
+    levenberg_marquardt,
+    newton_decrement,
+    restrict,
+)
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
@@ -74,6 +80,11 @@ MAX_ITER = 60
 #: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
 RTOL = 1e-11
 ATOL_N = 1e-9
+#: A lane out of steps whose remaining Gauss–Newton decrease would move its BIC by at most
+#: this much has reached its least squares for the selection (:func:`_reached`); a BIC
+#: difference below 2 is "not worth more than a bare mention" (Kass and Raftery 1995), and
+#: the selection asks for 10.
+BIC_SLACK = 0.5
 #: A covariate's Legendre term lies in the base model when least squares on the model's
 #: Jacobian columns reproduces it to this fraction of its norm (:func:`degrees_in_model`).
 IN_MODEL_RTOL = 1e-8
@@ -182,6 +193,29 @@ def row_counters(frames: list[pd.DataFrame], trials: list[np.ndarray],
     return out
 
 
+def order_is_time(muscle_curves) -> bool:
+    """Whether the order of the rows is one in which the residual's whiteness means
+    something (the runs test and Ljung–Box read the residual in row order): True where the
+    file has time, and where it has none but its rows follow a motion (the moving input
+    reverses: sweeps out and back, inflations and deflations). False for a map: every
+    muscle's rows without time, each curve running the same way as every other (the moving
+    input never reverses) and the curves' held levels following each other in one sense —
+    a table sorted by one input, then by the other, as force maps are published (Martens
+    and Boblan 2017, table A2). There a residual that is not white in row order is a
+    dependence on the inputs the table is sorted by, not on a time.
+
+    ``muscle_curves``: each muscle's :class:`pamid._data._curves.Curves`."""
+    for c in muscle_curves:
+        if np.all(np.isfinite(c.elapsed_s)) or len(np.unique(c.direction)) > 1:
+            return True
+        first = np.r_[True, np.diff(c.curve) != 0]
+        level = np.asarray(c.level, float)[first]
+        step = np.diff(level[np.isfinite(level)])
+        if np.any(step > 0) and np.any(step < 0):
+            return True
+    return False
+
+
 def _muscle_rows(bench) -> list[np.ndarray]:
     """Row positions of each muscle of a bench file, in the order of ``bench.muscles``."""
     idx = bench.frame.groupby("muscle", sort=False).indices
@@ -275,6 +309,8 @@ class StaticProblem:
         self.not_covariates = row_counters(frames, [c.trial for c in muscle_curves],
                                            [c for c in bench.covariates if c in allrows])
         self.covariates = self._covariate_names(allrows)
+        #: Whether the rows' order is a time order (:func:`order_is_time`); False for a map.
+        self.order_is_time = order_is_time(muscle_curves)
         groups = [(spec.x_from_frame(f, bench.path), f["force_N"].to_numpy(float))
                   for f in frames]
         self.data = pack(groups, curve_ids)
@@ -314,7 +350,9 @@ class StaticProblem:
         folds = []
         self._clips = []
         for f, c in zip(frames, muscle_curves, strict=True):
-            fold = _diagnosis_folds(c.curve, c.trial, n_folds)
+            fold = (_map_folds(f, spec, n_folds) if not self.order_is_time
+                    and spec.contraction_column in f and "pressure_kPa" in f
+                    else _diagnosis_folds(c.curve, c.trial, n_folds))
             folds.append(fold)
             # Features for all data, then for each fold with the covariates clamped to the
             # range of that fold's training samples: a held-out curve beyond that range is
@@ -695,6 +733,21 @@ def _diagnosis_folds(curve: np.ndarray, trial: np.ndarray, n_folds: int) -> np.n
     return _folds(unit, n_folds)
 
 
+def _map_folds(frame: pd.DataFrame, spec: ModelSpec, n_folds: int) -> np.ndarray:
+    """Folds of a map (:func:`order_is_time` False: no time, rows sorted by the inputs): the
+    point at the i-th pressure and j-th contraction of the grid (ranks of the distinct
+    values) is held out in fold (i + j) mod k, k = min(``n_folds``, the fewer levels of
+    the two inputs, at least 2). Every fold then holds out points at every pressure and
+    every contraction level, and a fit without them interpolates; holding out whole curves
+    — a whole contraction level of a map sorted by contraction — asks a function of the
+    contraction to extrapolate to a level it never saw, and eq. 2.1 alone (a3 from four
+    levels) predicted such a level 30 times worse than it fits."""
+    p = np.unique(frame["pressure_kPa"].to_numpy(float), return_inverse=True)
+    x = np.unique(frame[spec.contraction_column].to_numpy(float), return_inverse=True)
+    k = max(2, min(n_folds, len(p[0]), len(x[0])))
+    return (p[1].ravel() + x[1].ravel()) % k
+
+
 def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
     """Whole curves are held out, round robin; a muscle with fewer curves than folds is cut
     into blocks of consecutive samples instead."""
@@ -888,7 +941,22 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
                               floor=floor, bounds=bounds)
     resid_all = y - pred(sol.params)
     sse_test = jnp.sum(w_test * resid_all**2)
-    return sol.params, sol.sse, sse_test, resid_all, sol.result == CONVERGED, sol.free
+    return sol.params, sol.sse, sse_test, resid_all, _reached(sol, w), sol.free
+
+
+def _reached(sol, w):
+    """Whether a lane's solve reached its least squares as far as the selection can tell:
+    it converged, or it ran out of steps (:data:`MAX_ITER`) where the Gauss–Newton step
+    would still lower its SSE by so little that the BIC, n·ln(SSE/n), would move by at
+    most :data:`BIC_SLACK` (a decrement δ moves it by about n·δ/SSE). Such a lane is in a
+    flat valley of constants that trade off — a ``covariate:<col>`` of the contraction
+    beside eq. 2.1's a2·exp(a3·κ) + a6, whose a2 wanders to thousands of N over hundreds of
+    steps while the SSE moves in its fourth digit — and its SSE is that of the optimum for
+    every purpose of the comparison."""
+    g, h = restrict(sol.jac.T @ sol.residual, sol.jac.T @ sol.jac, sol.free)
+    n = jnp.maximum(jnp.sum(w > 0), 1)
+    flat = (sol.result == MAX_STEPS) & (newton_decrement(g, h) * n <= BIC_SLACK * sol.sse)
+    return (sol.result == CONVERGED) | flat
 
 
 def _lane_statistics(spec, with_compliance, shared, muscle, cols, colmask, free, params):

@@ -35,6 +35,23 @@ def diagnosis_report(d) -> str:
     if getattr(d, "subsample", None):
         lines.append(f"subsample (--max-rows): {d.rows_used} of the file's {d.rows_total} "
                      f"rows diagnosed — {d.subsample}")
+    shape = getattr(d, "force_law_shape", None)
+    if shape:
+        kept = shape["selected_on_model"]
+        lines.append(
+            f"the force law's shape: {shape['model']} leaves structure in its own inputs "
+            f"({', '.join(shape['suspects'])}); {shape['law']} alone fits this file better "
+            f"(BIC {shape['bic_law']:.1f}, CV RMSE {shape['cv_rmse_law_N']:.4g} N) than "
+            f"{shape['model']} with its best effect ({shape['best_effect']}: BIC "
+            f"{shape['bic_model_with_best_effect']:.1f}, CV RMSE "
+            f"{shape['cv_rmse_model_with_best_effect_N']:.4g} N)"
+            + (f" or with the effects its selection kept ({', '.join(kept)}, CV RMSE "
+               f"{shape['cv_rmse_model_with_selected_N']:.4g} N)" if kept else "")
+            + f": the misfit is the force law's shape, not an effect. The effects below are "
+            f"diagnosed on top of {shape['law']}.")
+        lines.append("   force laws compared as pamid compare ranks them (CV RMSE N, BIC): "
+                     + ", ".join(f"{law['model']} {law['cv_rmse_N']:.4g}, {law['bic']:.1f}"
+                                 for law in shape["laws"]))
     for f in getattr(d, "muscles_flagged", []):
         what = ("fitted within bounds and diagnosed with the others, that constant held "
                 "(its value is the bound, not a finding)" if f["diagnosed"]
@@ -114,15 +131,26 @@ def diagnosis_report(d) -> str:
                  for x, y in zip(bins_b, bins_a, strict=False)]
         lines.append(f"     {c:<20} " + "; ".join(cells))
     lines.append("")
+    in_time = getattr(d, "order_is_time", True)
     if d.unexplained:
+        why = ("or a lag-1 autocorrelation of at least 0.1 for the time order" if in_time
+               else "or, for a residual not white in the map's row order, the covariate that "
+               "carries it: the largest share of its variance, p < 0.01")
         lines.append("5. Unexplained: the final residual still depends on "
                      + ", ".join(d.unexplained) + " (p < 0.001, and at least 2 % of its "
-                     "variance, or a lag-1 autocorrelation of at least 0.1 for the time "
-                     "order); no library effect removes it.")
-    else:
+                     f"variance, {why}); no library effect removes it.")
+    elif in_time:
         lines.append("5. Unexplained: nothing material — no covariate explains 2 % of the "
                      "final residual's variance at p < 0.001, and its time order shows no "
                      "lag-1 autocorrelation of 0.1 or more at p < 0.001.")
+    else:
+        lines.append("5. Unexplained: nothing material — no covariate explains 2 % of the "
+                     "final residual's variance at p < 0.001, nor carries a structure of the "
+                     "residual in the map's row order at p < 0.01.")
+    if not in_time:
+        lines.append("   The rows are a map sorted by its inputs, with no time: the runs test "
+                     "and Ljung–Box read them in that order, and structure there is named by "
+                     "the covariate that carries it, never by a time order.")
     for c in getattr(d, "covariates_not_used", []):
         lines.append(f"   Not used as a covariate: {c['column']} ({c['why']}).")
     return "\n".join(lines)
