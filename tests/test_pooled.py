@@ -197,6 +197,14 @@ def test_several_diameters_nearest_takes_the_same_diameter_and_bolen_says_why_no
     assert "10, 20 mm" in skipped["bolen2026"]
     table = pamid.report.pooled_table(out)
     assert "V00" in table and "W0" in table  # muscles of one length told apart by name
+    # A new muscle takes the constants of the nearest length of its own diameter.
+    entry = nearest.to_dict()
+    at = {"l0_mm": 200.0, "pressure_kPa": (600.0,), "contraction_pct": (0.0,), "points": True}
+    f10 = pamid.predict_muscle(entry, descriptors={"diameter_mm": 10.0}, **at).force_N[0]
+    f20 = pamid.predict_muscle(entry, descriptors={"diameter_mm": 20.0}, **at).force_N[0]
+    assert 3.0 < f20 / f10 < 5.0
+    with pytest.raises(ValueError, match="no tested muscle has diameter_mm = 15"):
+        pamid.predict_muscle(entry, descriptors={"diameter_mm": 15.0}, **at)
 
 
 def test_the_lab_codes_10_mm_coefficients_are_not_used_for_other_diameters(tmp_path):

@@ -197,8 +197,21 @@ def _evaluate(entry: dict, given: dict, p, k) -> np.ndarray:
     base = get_model(entry["base"])
     x = _inputs(base, p, k, given["l0_mm"])
     if kind == "nearest":
-        l0 = np.asarray(entry["descriptors"]["muscle_values"]["l0_mm"])
-        i = int(np.argmin(np.abs(np.log(l0 / given["l0_mm"]))))
+        values = entry["descriptors"]["muscle_values"]
+        l0 = np.asarray(values["l0_mm"], np.float64)
+        # The nearest length among the tested muscles of the new one's diameter (and other
+        # descriptors given), as the comparison scored it.
+        same = np.ones(l0.size, bool)
+        for name, tested in values.items():
+            if name in ("l0_mm", "l620_mm", EMAX) or name not in given:
+                continue
+            same &= np.isclose(np.asarray(tested, np.float64), given[name], rtol=1e-9)
+        if not same.any():
+            asked = ", ".join(f"{n} = {given[n]:g}" for n in values
+                              if n not in ("l0_mm", "l620_mm", EMAX) and n in given)
+            raise ValueError(f"no tested muscle has {asked}: the nearest tested muscle's "
+                             "constants say nothing of it (a smooth pooled model may)")
+        i = int(np.argmin(np.where(same, np.abs(np.log(l0 / given["l0_mm"])), np.inf)))
         row = list(entry["constants_per_muscle"].values())[i]
         return np.asarray(base.predict(jnp.asarray([row[n] for n in base.param_names]), x))
     d = entry["descriptors"]
