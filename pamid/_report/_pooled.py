@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _plot
-
 
 def _g(x, digits: int = 3) -> str:
     return "—" if x is None or not np.isfinite(x) else f"{x:.{digits}g}"
@@ -48,6 +46,8 @@ def plot_pooled_lomo(result, path=None, *, title: str | None = None):
     import matplotlib
     from matplotlib.figure import Figure
 
+    from . import _plot
+
     fig = Figure(figsize=(7.5, 4.6), layout="constrained")
     ax = fig.subplots()
     tab = matplotlib.colormaps["tab10"]
@@ -70,47 +70,49 @@ def plot_pooled_lomo(result, path=None, *, title: str | None = None):
     return fig
 
 
-def prediction_table(pred) -> str:
+def prediction_table(result) -> str:
     """The predicted map, one line per point: pressure, contraction, force and its interval."""
-    desc = ", ".join(f"{k} = {v:.4g}" for k, v in pred.descriptors.items())
-    lines = [f"Predicted force of an untested muscle ({desc}) — model {pred.model}",
-             f"{100 * pred.level:.0f} % predictive interval (spread of muscles about the "
+    desc = ", ".join(f"{k} = {v:.4g}" for k, v in result.descriptors.items())
+    lines = [f"Predicted force of an untested muscle ({desc}) — model {result.model}",
+             f"{100 * result.level:.0f} % predictive interval (spread of muscles about the "
              "pooled law + noise)"]
-    if pred.emax_source:
-        lines.append(f"emax_pct from {pred.emax_source}")
-    lines += [f"note: {n}" for n in pred.notes]
+    if result.emax_source:
+        lines.append(f"emax_pct from {result.emax_source}")
+    lines += [f"note: {n}" for n in result.notes]
     head = f"{'p [kPa]':>8} {'κ [%]':>7} {'F [N]':>9} {'low [N]':>9} {'high [N]':>9}"
     lines += [head, "-" * len(head)]
-    for p, k, f, lo, hi in zip(pred.pressure_kPa, pred.contraction_pct, pred.force_N,
-                               pred.low_N, pred.high_N, strict=True):
+    for p, k, f, lo, hi in zip(result.pressure_kPa, result.contraction_pct, result.force_N,
+                               result.low_N, result.high_N, strict=True):
         lines.append(f"{p:>8.4g} {k:>7.3g} {f:>9.4g} {lo:>9.4g} {hi:>9.4g}")
     return "\n".join(lines)
 
 
-def plot_prediction(pred, path=None, *, measured=None, title: str | None = None):
+def plot_prediction(result, path=None, *, measured=None, title: str | None = None):
     """The predicted force against contraction at each pressure, with its 95 % predictive
     band; ``measured`` (a frame with pressure_kPa, contraction_pct, force_N) is drawn on
     top where given. Written to ``path`` atomically unless it is None; the figure is
     returned."""
     from matplotlib.figure import Figure
 
+    from . import _plot
+
     fig = Figure(figsize=(7.5, 5.0), layout="constrained")
     ax = fig.subplots()
-    pressures = np.unique(pred.pressure_kPa)
+    pressures = np.unique(result.pressure_kPa)
     colors = _plot._CMAP(np.linspace(0.0, 1.0, max(len(pressures), 2)))
     for c, p in zip(colors, pressures, strict=False):
-        sel = pred.pressure_kPa == p
-        k = pred.contraction_pct[sel]
+        sel = result.pressure_kPa == p
+        k = result.contraction_pct[sel]
         order = np.argsort(k)
-        ax.fill_between(k[order], np.maximum(pred.low_N[sel][order], 0.0),
-                        np.maximum(pred.high_N[sel][order], 0.0), color=c, alpha=0.18, lw=0)
-        ax.plot(k[order], pred.force_N[sel][order], color=c, lw=1.6, label=f"{p:.0f} kPa")
+        ax.fill_between(k[order], np.maximum(result.low_N[sel][order], 0.0),
+                        np.maximum(result.high_N[sel][order], 0.0), color=c, alpha=0.18, lw=0)
+        ax.plot(k[order], result.force_N[sel][order], color=c, lw=1.6, label=f"{p:.0f} kPa")
     if measured is not None:
         ax.scatter(measured["contraction_pct"], measured["force_N"], s=4, color="0.2",
                    alpha=0.35, label="measured", zorder=3)
-    desc = ", ".join(f"{k} = {v:.4g}" for k, v in pred.descriptors.items())
-    ax.set_title(title or f"Predicted muscle ({desc})\nmodel {pred.model}, band: "
-                 f"{100 * pred.level:.0f} % predictive interval", fontsize=10)
+    desc = ", ".join(f"{k} = {v:.4g}" for k, v in result.descriptors.items())
+    ax.set_title(title or f"Predicted muscle ({desc})\nmodel {result.model}, band: "
+                 f"{100 * result.level:.0f} % predictive interval", fontsize=10)
     ax.set_xlabel("contraction κ [%]")
     ax.set_ylabel("force [N]")
     ax.set_ylim(bottom=0)
