@@ -17,6 +17,7 @@ import pytest
 from pamid._control._positioning import sarosi_from_fit_json
 from pamid._inference import (
     covariance,
+    gram_inverse,
     null_direction,
     numerical_rank,
     standard_errors,
@@ -141,3 +142,16 @@ def test_no_other_place_inverts_a_normal_matrix_or_counts_a_rank():
              for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
              if pattern.search(line.split("#")[0])]
     assert found == []
+
+
+def test_the_inverse_from_the_normal_matrix_agrees_with_the_jacobians():
+    # The sandwich intervals' bread: the same inverse and the same verdict from A = JᵀJ.
+    rng = np.random.default_rng(4)
+    stack = rng.normal(size=(4, 40, 3)) * np.array([1e-4, 1.0, 1e5])
+    stack[3, :, 2] = 2.0 * stack[3, :, 0] * 1e9 - stack[3, :, 1] * 1e5  # rank 2
+    a = np.swapaxes(stack, 1, 2) @ stack
+    inv, full = gram_inverse(a)
+    ref, _, ref_full = unscaled_covariance(stack)
+    np.testing.assert_array_equal(full, ref_full)
+    assert list(full) == [True, True, True, False] and np.all(np.isnan(inv[3]))
+    np.testing.assert_allclose(inv[:3], ref[:3], rtol=1e-9)

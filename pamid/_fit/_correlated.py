@@ -57,7 +57,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._inference import t_critical, unscaled_covariance, wald_interval
+from .._inference import gram_inverse, t_critical, wald_interval
 from ._batch import FitData, map_lanes
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
@@ -104,11 +104,10 @@ def batch_residuals(spec: ModelSpec, theta, data: FitData) -> np.ndarray:
 
 
 def _bread(jac):
-    """A⁻¹ = (JᵀJ)⁻¹ per muscle (pamid's one covariance and rank criterion,
-    :func:`pamid._inference.unscaled_covariance`; NaN where J is rank-deficient) and A."""
+    """A⁻¹ = (JᵀJ)⁻¹ per muscle (pamid's one rank criterion, on A:
+    :func:`pamid._inference.gram_inverse`; NaN where J is rank-deficient) and A."""
     a = np.matmul(np.swapaxes(jac, 1, 2), jac)
-    inv, _, full_rank = unscaled_covariance(jac)
-    return a, np.where(full_rank[:, None, None], inv, np.nan)
+    return a, gram_inverse(a)[0]
 
 
 def _dense_groups(groups):

@@ -5,6 +5,7 @@ package that fits something takes its covariance from here (docs/architecture.md
 
 from ._covariance import (
     covariance,
+    gram_inverse,
     residual_variance,
     scale_covariance,
     standard_errors,
@@ -23,7 +24,8 @@ from ._rank import (
 from ._wald import t_critical, wald, wald_interval
 
 __all__ = [
-    "NULL_SHARE", "RANK_PIVOT", "RANK_RTOL", "covariance", "determined", "null_direction",
-    "numerical_rank", "residual_variance", "scale_covariance", "scaled_svd", "standard_errors",
-    "t_critical", "undetermined", "unscaled_covariance", "wald", "wald_interval",
+    "NULL_SHARE", "RANK_PIVOT", "RANK_RTOL", "covariance", "determined", "gram_inverse",
+    "null_direction", "numerical_rank", "residual_variance", "scale_covariance", "scaled_svd",
+    "standard_errors", "t_critical", "undetermined", "unscaled_covariance", "wald",
+    "wald_interval",
 ]
