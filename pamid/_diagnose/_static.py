@@ -9,6 +9,8 @@ t the time from the start of the muscle's test in hours, v the rate of contracti
 effect                 added to the force (N)                   constants
 =====================  =======================================  ==========================
 ``hysteresis``         −d·(h0 + h1·p)  (Sárosi eq. 2.3–2.4)      h0 (N), h1 (N/bar)
+                       − Σ_i (h0_i + h1_i·p)·ŝ_i  (slip        h0_i (N), h1_i (N/bar), ≥ 0
+                       elements, with a time order)
 ``temperature``        (τ0 + τ1·p)·ΔT                           τ0 (N/K), τ1 (N/(bar·K))
 ``drift``              δ1·t + δ2·t²  (load-cell zero drift)     δ1 (N/h), δ2 (N/h²)
 ``viscous_damping``    −g·v  (Cullinan's −G·ẏ, eq. 3)           g (N·s/mm or N·s/%)
@@ -413,10 +415,12 @@ class StaticProblem:
         time = c.elapsed_s if np.all(np.isfinite(c.elapsed_s)) else None
         stepped = self.file.step_input if time is not None else None
         kcol = self.spec.contraction_column
+        step_noise = None
         if stepped == "pressure":
             steps = moving_steps(f["pressure_kPa"].to_numpy(float), c.moving, c.trial)
+            step_noise = c.noise.get("pressure_kPa")
         elif stepped == "contraction" and kcol in f:
-            noise = c.noise.get(kcol, np.zeros(len(f)))
+            step_noise = noise = c.noise.get(kcol, np.zeros(len(f)))
             steps = rod_steps(f[kcol].to_numpy(float), c.moving, c.trial, noise)
         else:
             steps = np.zeros(len(f))
@@ -438,7 +442,7 @@ class StaticProblem:
         return MuscleContext(
             frame=f, baseline_N=base, steps=steps, trial=np.asarray(c.trial), time_s=time,
             file=self.file, speed=speed, l0_mm=self.l0_mm[i], max_dF_dp_N_per_kPa=slope,
-            step_slope=step_slope)
+            step_slope=step_slope, step_noise=step_noise)
 
     def _effects(self) -> list[Effect]:
         """The registry's effects (:data:`pamid._effects._definitions.STATIC_EFFECTS`) that
@@ -446,6 +450,9 @@ class StaticProblem:
         effects: list[Effect] = []
         col = 0
         slot = {d.name: j for j, d in enumerate(transforms())}
+        #: Per feature column, the bounds the fit holds its constant within (±inf but for a
+        #: constant declared ``held``: a slip element's weight, ≥ 0).
+        self.col_bounds: list[tuple[float, float]] = []
         for d in STATIC_EFFECTS:
             for name, covariate, consts in d.members(self.file):
                 if d.transform is not None:
@@ -453,6 +460,8 @@ class StaticProblem:
                 else:
                     cols, tr = tuple(range(col, col + len(consts))), None
                     col += len(consts)
+                    self.col_bounds += [(c.lower, c.upper) if c.held else (-math.inf, math.inf)
+                                        for c in consts]
                 effects.append(Effect(name, covariate, tuple(c.name for c in consts),
                                       tuple(c.unit for c in consts), cols, d, tr, d.grid))
         self.grid_value = {e.name: [1.0] * len(self.frames) for e in effects if e.grid}
@@ -622,12 +631,17 @@ class StaticProblem:
                                                                    lanes_fold))
         cols = np.zeros((len(sets), n_slots), int)
         colmask = np.zeros((len(sets), n_slots))
+        # Bounds of the effects' constants held within them by the fit (transforms, slots).
+        eff_bounds = np.tile(np.array([-np.inf, np.inf])[:, None, None],
+                             (1, len(sets), n_tr + n_slots))
         trmask = np.zeros((len(sets), n_tr))
         implicit = np.zeros(len(sets), bool)
         hidden = np.zeros(len(sets), int)
         for i, s in enumerate(slots):
             cols[i, : len(s)] = s
             colmask[i, : len(s)] = 1.0
+            for j, c in enumerate(s):
+                eff_bounds[:, i, n_tr + j] = self.col_bounds[c]
             for name in sets[i]:
                 e = self.effect(name)
                 hidden[i] += e.hidden
@@ -649,7 +663,8 @@ class StaticProblem:
             lane_comp, lambda flag, sel: _run_lanes(
                 _solve_lanes_jit, "diagnose_lanes", self.spec, flag, shared,
                 lanes_muscle[sel], lanes_fold[sel], cols[lanes_set[sel]],
-                colmask[lanes_set[sel]], free[sel], start[sel]))
+                colmask[lanes_set[sel]], free[sel], start[sel],
+                eff_bounds[0][lanes_set[sel]], eff_bounds[1][lanes_set[sel]]))
         # (JᵀJ)⁻¹ and the numerical rank are asked of the fits to all data only (the
         # intervals, the BIC); the held-out fits need neither.
         full_lanes = np.flatnonzero(lanes_fold == 0)
@@ -917,13 +932,16 @@ def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
     return y, w, w_test, pred, normal
 
 
-def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0):
+def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0,
+          eff_lower, eff_upper):
     """Solve one lane (:func:`_lane_problem`): the model's constants start at ``theta0``,
     those where ``free`` is 0 held there, the others kept within the model's bounds
-    (``shared``'s last entry; the effects' constants are not bounded here: one past its
-    physical bound is reported as what it would have needed). Returns the constants, the
-    SSE, the held-out SSE, the residual of every sample, whether it converged and the mask
-    at the end (0 where a constant is held)."""
+    (``shared``'s last entry). The effects' constants are kept within ``eff_lower`` …
+    ``eff_upper`` (transforms, then slots): ±inf but for a constant declared ``held`` (a
+    slip element's weight); the others are not bounded here: one past its physical bound is
+    reported as what it would have needed. Returns the constants, the SSE, the held-out
+    SSE, the residual of every sample, whether it converged and the mask at the end (0
+    where a constant is held)."""
     y, w, w_test, pred, normal = _lane_problem(spec, with_compliance, shared, muscle, fold,
                                                cols, colmask)
     model_bounds = shared[5]
@@ -931,11 +949,9 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
     s = cols.shape[0]
     mask = jnp.concatenate([free, colmask])
     params0 = jnp.concatenate([theta0, jnp.zeros(n_tr + s)])
-    bounds = None
-    if model_bounds is not None:
-        unbounded = jnp.full(n_tr + s, jnp.inf)
-        bounds = (jnp.concatenate([model_bounds[0], -unbounded]),
-                  jnp.concatenate([model_bounds[1], unbounded]))
+    unbounded = jnp.full(theta0.shape, jnp.inf)
+    lower, upper = (-unbounded, unbounded) if model_bounds is None else model_bounds
+    bounds = (jnp.concatenate([lower, eff_lower]), jnp.concatenate([upper, eff_upper]))
     floor = jnp.sum(w > 0) * ATOL_N**2
     sol = levenberg_marquardt(normal, params0, mask, max_steps=MAX_ITER, rtol=RTOL,
                               floor=floor, bounds=bounds)
@@ -997,8 +1013,14 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
             e = problem.effect(name)
             consts = {}
             idx = problem._index(fit, name)
-            for pname, unit, j in zip(e.param_names, e.units, idx, strict=True):
+            for pname, unit, j, c in zip(e.param_names, e.units, idx, e.columns or [None],
+                                         strict=False):
                 v = float(params[i][j])
+                if c is not None and _on_bound(v, *problem.col_bounds[c]):
+                    # held on its bound by the fit (a slip element at 0: absent), no interval
+                    consts[pname] = {"value": v, "ci95": [math.nan, math.nan], "unit": unit,
+                                     "held_at_bound": True}
+                    continue
                 lo, hi = wald_interval(v, se[j], dof, level)
                 consts[pname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit}
                 if unit == "%/N" and problem.l0_mm[i]:  # a length per newton, also in mm

@@ -73,6 +73,10 @@ class Constant:
     meaning: str = ""
     #: ``bounds(file) -> (lower, upper)`` where the bounds depend on the file.
     bounds: Callable | None = None
+    #: Held within its bounds by the fit itself, rather than fitted freely and reported as
+    #: unphysical past them: a weight of an element that may be absent (a slip element of
+    #: the hysteresis), for which 0 is a result, not a violation.
+    held: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,6 +146,11 @@ class MuscleContext:
     #: ∂F_model/∂(the stepped input) of the largest magnitude over the muscle's rows, with
     #: its sign (N per kPa, or per % or mm of contraction); None: that of the pressure.
     step_slope: float | None = None
+    #: The noise standard deviation of the stepped input at each row (its unit), as the
+    #: curve finder estimates it (:attr:`pamid._data._curves.Curves.noise`); None: none.
+    step_noise: np.ndarray | None = None
+    #: Features that are the same in every fold (the slip elements), computed once.
+    memo: dict = dataclasses.field(default_factory=dict, repr=False)
 
     @property
     def p_bar(self) -> np.ndarray:
@@ -187,6 +196,7 @@ class EffectDefinition:
     applies: Callable | None = None
     check: Callable | None = None
     family: Callable | None = None
+    more: Callable | None = None
 
     @property
     def injectors(self) -> tuple[str, ...]:
@@ -202,18 +212,20 @@ class EffectDefinition:
             return []
         if self.applies is not None and not self.applies(file):
             return []
+        extra = self.more(file) if self.more is not None else ()
         consts = tuple(dataclasses.replace(c, unit=c.unit.format(x=file.unit_x,
                                                                  step=file.step_unit))
-                       for c in self.constants)
+                       for c in (*self.constants, *extra))
         return [(self.name, present[0] if present else "force_N", consts)]
 
     def violation(self, values: dict[str, float], effect: Effect, file: FileContext,
                   muscle: MuscleContext | None = None) -> str | None:
         """None when the fitted ``values`` are physical; else what the effect would need,
         e.g. "compliance would need c = −0.12 mm/N < 0: not physical"."""
-        for c, unit in zip(self.constants, effect.units, strict=False):
+        extra = self.more(file) if self.more is not None else ()
+        for c, unit in zip((*self.constants, *extra), effect.units, strict=False):
             v = values.get(c.name)
-            if v is None or not np.isfinite(v):
+            if v is None or not np.isfinite(v) or c.held:
                 continue
             lo, hi = _bounds(c, file)
             u = "" if unit == "1" else f" {unit}"
@@ -316,32 +328,110 @@ def _relaxation(steps, time_s, trial, tau):
 
 
 def _hysteresis_check(values, file, muscle):
-    h = values["h0"] + values["h1"] * file.pressure_median_bar
-    if h < 0:
-        return (f"hysteresis would need h = h0 + h1·p = {h:.3g} N < 0 at the median pressure "
-                f"{file.pressure_median_bar:.3g} bar (a loop run backwards gains energy): "
-                "not physical")
+    p = file.pressure_median_bar
+    h = values["h0"] + values["h1"] * p
+    slip = sum(values.get(f"h0_r{k}", 0.0) + values.get(f"h1_r{k}", 0.0) * p
+               for k in _slip_labels(file))
+    if h + slip < 0:
+        what = "h = h0 + h1·p" if not slip else "the loop's half height h0 + h1·p + Σ slip"
+        return (f"hysteresis would need {what} = {h + slip:.3g} N < 0 at the median pressure "
+                f"{p:.3g} bar (a loop run backwards gains energy): not physical")
     return None
 
 
+#: Thresholds of the hysteresis' slip elements, as shares of the range of the moving input
+#: over the muscle's rows: an element of share q slides once the input has moved by 2q of
+#: its range since the last reversal. 0.4 is the largest that still slides within the range
+#: (an element of 0.5 would never slide in a loop over the whole range: a spring, no loop).
+SLIP_SHARES = (0.05, 0.1, 0.2, 0.4)
+#: The slip elements see the moving input through a play of this many of its noise standard
+#: deviations (:data:`pamid._data._curves.NOISE_SIGMAS`: beyond it a change is motion).
+SLIP_DEADBAND_SIGMAS = 5.0
+
+
+def _slip_labels(file: FileContext) -> tuple[str, ...]:
+    """The slip elements' labels ("05" for a share of 0.05) where the file has them: rows
+    in a time order with a moving input (:attr:`FileContext.step_input`)."""
+    if file is None or file.step_input is None:
+        return ()
+    return tuple(f"{round(100 * q):02d}" for q in SLIP_SHARES)
+
+
+def _slip_constants(file: FileContext) -> tuple[Constant, ...]:
+    out = []
+    for k in _slip_labels(file):
+        what = f"slip element of threshold {int(k)} % of the moving input's range"
+        out += [Constant(f"h0_r{k}", "N", lower=0.0, held=True, meaning=what),
+                Constant(f"h1_r{k}", "N/bar", lower=0.0, held=True,
+                         meaning=what + ", per bar")]
+    return tuple(out)
+
+
+def slip_features(m: MuscleContext) -> np.ndarray:
+    """The normalized deflections ŝ (rows, elements) of the slip elements of
+    :data:`SLIP_SHARES` on the muscle's moving input (:mod:`pamid._effects._slip`), each
+    trial starting again, the input's jitter within :data:`SLIP_DEADBAND_SIGMAS` of its noise
+    taken out first (:func:`~pamid._effects._slip.play_operator`); computed once per muscle
+    (the same in every fold)."""
+    if "slip" not in m.memo:
+        from ._slip import play_operator, stop_operator
+
+        spec = m.file.spec
+        name = "pressure_kPa" if m.file.step_input == "pressure" else spec.contraction_column
+        u = m.frame[name].to_numpy(float)
+        lo, hi = np.quantile(u, [0.005, 0.995]) if len(u) else (0.0, 0.0)
+        start = np.r_[True, m.trial[1:] != m.trial[:-1]] if len(u) else np.zeros(0, bool)
+        if m.step_noise is not None:
+            u = play_operator(u, SLIP_DEADBAND_SIGMAS * m.step_noise, start)
+        if hi > lo:
+            m.memo["slip"] = stop_operator(u, np.asarray(SLIP_SHARES) * (hi - lo), start)
+        else:
+            m.memo["slip"] = np.zeros((len(u), len(SLIP_SHARES)))
+    return m.memo["slip"]
+
+
+def _hysteresis_features(m, col, g):
+    d = col("direction")
+    out = [-d, -d * m.p_bar]
+    if _slip_labels(m.file):
+        for s in slip_features(m).T:
+            out += [-s, -s * m.p_bar]
+    return out
+
+
 def _hysteresis() -> EffectDefinition:
-    """Inflate/deflate or contract/extend hysteresis: −d·(h0 + h1·p) N.
+    """Inflate/deflate or contract/extend hysteresis, with memory where the rows have a time
+    order: −d·(h0 + h1·p) − Σ_i (h0_i + h1_i·p)·ŝ_i N.
 
     Physical reason: dry friction between the braid's fibres and between braid and bladder
     dissipates energy, so the force while contracting lies below the force while extending
     (Sárosi's lower and upper curves F_a and F_f, eq. 2.3–2.4; Chou and Hannaford 1996,
-    IEEE Trans. Robot. Autom. 12(1):90–102). The half height h(p) must be ≥ 0.
-    Injector: :class:`pamid._effects._inject.InjectedHysteresis` (and
-    ``IsometricProtocol.hysteresis_N_at_3_bar``).
+    IEEE Trans. Robot. Autom. 12(1):90–102). The first term is the jump at a reversal (d the
+    direction, recorded or derived). The friction of many fibres does not jump all at
+    once: each slides only once the input has moved far enough since the last reversal, so
+    the loop curves after every reversal and closes minor loops. That is the generalized
+    Maxwell-slip model (Al-Bender, Lampaert and Swevers, IEEE Trans. Autom. Control
+    50(11):1883–1887, 2005): ŝ_i ∈ [−1, 1] is the normalized stop operator of slip element
+    i on the moving input (the pressure in an isometric test, the contraction in a sweep;
+    :mod:`pamid._effects._slip`), of threshold :data:`SLIP_SHARES` of the input's range;
+    its slip force h0_i + h1_i·p has a part from the braid's pretension and one from the
+    pressure's normal force (Tondu and Lopez 2000), both ≥ 0, held so by the fit (an
+    element at 0 is absent). The loop's half height at the median pressure must be ≥ 0.
+    Unlike the transient it does not relax at a held input. Injectors:
+    :class:`pamid._effects._inject.InjectedHysteresis` (and
+    ``IsometricProtocol.hysteresis_N_at_3_bar``),
+    :class:`~pamid._effects._inject.InjectedMaxwellSlip`.
     """
     return EffectDefinition(
         name="hysteresis", covariates=("direction",),
         constants=(Constant("h0", "N"), Constant("h1", "N/bar")),
         injector=("pamid._effects._inject.InjectedHysteresis",
+                  "pamid._effects._inject.InjectedMaxwellSlip",
                   "pamid._virtual._isometric.IsometricProtocol.hysteresis_N_at_3_bar",
                   "pamid._virtual._sweeps.SarosiProtocol.hysteresis_N_per_bar"),
-        features=lambda m, col, g: [-col("direction"), -col("direction") * m.p_bar],
+        features=_hysteresis_features,
         check=_hysteresis_check,
+        more=_slip_constants,
     )
 
 

@@ -15,9 +15,12 @@ Every effect sees a context of arrays that broadcast to the shape (C, M, P, D, K
 ``p_bar`` gauge pressure (bar); ``kappa_pct`` contraction (%); ``direction`` +1 contracting,
 −1 extending; ``time_s`` the time of the sample from the start of the muscle's test;
 ``velocity_mm_s`` the rate of contraction (positive while contracting; 0 in an isometric
-test); ``sweep`` the index of the sweep (cycle-major; the trial in an isometric test) within a
-muscle; ``point_fraction`` the sample's place in its sweep or trial, 0 … 1; ``rng`` a NumPy
-Generator made from the bench's JAX key.
+test); ``moving_input`` the input that moves within a trial (the contraction in % in a
+sweep, the pressure in kPa in an isometric test) and ``sequence_axes`` how many trailing axes
+hold one trial's samples in time order (3 in a sweep: pressure, direction, point; 1 in an
+isometric test); ``sweep`` the index of the sweep (cycle-major; the trial in an isometric
+test) within a muscle; ``point_fraction`` the sample's place in its sweep or trial, 0 … 1;
+``rng`` a NumPy Generator made from the bench's JAX key.
 
 Compliance is different: it changes the muscle's length, not the force reading, so the
 bench applies it inside the force law (see :class:`InjectedCompliance`).
@@ -34,6 +37,7 @@ __all__ = [
     "InjectedCovariate",
     "InjectedDrift",
     "InjectedHysteresis",
+    "InjectedMaxwellSlip",
     "InjectedTemperature",
     "InjectedViscousDamping",
 ]
@@ -87,6 +91,52 @@ class InjectedHysteresis:
         shape = {"linear": u, "sqrt": np.sqrt(u), "constant": np.ones_like(u),
                  "quadratic": u**2}[self.form]
         return -ctx["direction"] * self.N_at_3_bar * shape
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedMaxwellSlip:
+    """Friction with memory: Maxwell-slip elements on the moving input, the force read while
+    the input rises below the static curve and above it while it falls, curving after every
+    reversal and closing minor loops (:mod:`pamid._effects._slip`).
+
+    ``elements`` elements whose thresholds are spread geometrically over ``spread`` (shares
+    of the input's range within the trial: the pressure's in an isometric test, the
+    contraction's in a sweep) with equal weights, each element's slip force proportional
+    to the pressure (``linear``: the braid's normal force, Tondu and Lopez 2000) or not
+    (``constant``). Saturated — every element sliding — the force is ``N_at_3_bar`` below
+    (or above) the static curve at 3 bar. Each trial starts as if its input had last fallen
+    (a muscle deflated, or extended, before it). Unlike :class:`InjectedHysteresis`, it
+    needs no direction: the loop's shape follows the input's path.
+    """
+
+    N_at_3_bar: float = 9.0
+    spread: tuple[float, float] = (0.03, 0.3)
+    elements: int = 8
+    form: str = "linear"
+
+    def __post_init__(self):
+        _check_form(self.form, ("linear", "constant"), "Maxwell-slip")
+        lo, hi = self.spread
+        if not (0.0 < lo <= hi) or self.elements < 1:
+            raise ValueError("spread must be two shares 0 < lo <= hi; elements >= 1")
+
+    def force_N(self, ctx):
+        from ._slip import stop_operator
+
+        u = np.asarray(ctx["moving_input"], float)
+        shape = u.shape
+        n_seq = int(ctx["sequence_axes"])
+        seqs = u.reshape(-1, int(np.prod(shape[len(shape) - n_seq:])))
+        shares = np.geomspace(*self.spread, self.elements)
+        out = np.zeros_like(seqs)
+        for i, seq in enumerate(seqs):
+            span = float(np.max(seq) - np.min(seq))
+            if span <= 0:
+                continue
+            out[i] = stop_operator(seq, shares * span, initial=-1.0).mean(axis=1)
+        scale = (np.maximum(ctx["p_bar"], 0.0) / _P_REF_BAR if self.form == "linear"
+                 else np.ones(shape))
+        return -self.N_at_3_bar * scale * out.reshape(shape)
 
 
 @dataclasses.dataclass(frozen=True)

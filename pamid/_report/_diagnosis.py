@@ -109,8 +109,13 @@ def diagnosis_report(d) -> str:
         for g in d.constants[:10]:
             group = g.get("muscle", g.get("trial", ""))
             for name, consts in g["effects"].items():
+                held = [pname for pname, c in consts.items() if c.get("held_at_bound")]
                 for pname, c in consts.items():
-                    lines.append(f"     {group:<10} {name:<22} {pname:<12} {_ci(c)}")
+                    if pname not in held:
+                        lines.append(f"     {group:<10} {name:<22} {pname:<12} {_ci(c)}")
+                if held:
+                    lines.append(f"     {group:<10} {name:<22} on its bound by the fit "
+                                 "(0: absent): " + ", ".join(held))
         if len(d.constants) > 10:
             lines.append(f"     … and {len(d.constants) - 10} more (see --json)")
     lines.append("")

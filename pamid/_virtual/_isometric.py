@@ -344,6 +344,8 @@ def simulate_isometric_bench(
             "kappa_pct": kappa_true,
             "time_s": np.broadcast_to(trial_start[:, None] + t, shape),
             "velocity_mm_s": np.zeros(shape),  # the clamp holds the length
+            "moving_input": np.broadcast_to(p_kpa, shape),
+            "sequence_axes": 1,
             "sweep": np.broadcast_to(np.arange(n_trials)[:, None], shape),
             "point_fraction": t / protocol.trial_duration_s,
             "rng": np.random.default_rng(seed),

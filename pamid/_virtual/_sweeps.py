@@ -366,6 +366,8 @@ def _effect_context(protocol, p_grid, kappa, ends, spp, time, direction, seed):
         "direction": np.broadcast_to(direction[None], shape),
         "time_s": time,
         "velocity_mm_s": np.broadcast_to(direction[None] * step_mm / spp, shape),
+        "moving_input": np.broadcast_to(kappa[None], shape),
+        "sequence_axes": 3,  # a cycle's sweeps, pressure by pressure, in time order
         "sweep": sweep,
         "point_fraction": np.broadcast_to(np.linspace(0.0, 1.0, n_points), shape),
         "rng": np.random.default_rng(seed),
