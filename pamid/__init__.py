@@ -115,6 +115,7 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "InjectedDrift": ("._effects._inject", "InjectedDrift"),
     "InjectedHysteresis": ("._effects._inject", "InjectedHysteresis"),
     "InjectedMaxwellSlip": ("._effects._inject", "InjectedMaxwellSlip"),
+    "InjectedRelativeTemperature": ("._effects._inject", "InjectedRelativeTemperature"),
     "InjectedTemperature": ("._effects._inject", "InjectedTemperature"),
     "InjectedViscousDamping": ("._effects._inject", "InjectedViscousDamping"),
     # Free decays.
@@ -322,6 +323,7 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._effects._inject import InjectedDrift as InjectedDrift
     from ._effects._inject import InjectedHysteresis as InjectedHysteresis
     from ._effects._inject import InjectedMaxwellSlip as InjectedMaxwellSlip
+    from ._effects._inject import InjectedRelativeTemperature as InjectedRelativeTemperature
     from ._effects._inject import InjectedTemperature as InjectedTemperature
     from ._effects._inject import InjectedViscousDamping as InjectedViscousDamping
     from ._errors import BenchDataError as BenchDataError

@@ -24,6 +24,10 @@ test) within a muscle; ``point_fraction`` the sample's place in its sweep or tri
 
 Compliance is different: it changes the muscle's length, not the force reading, so the
 bench applies it inside the force law (see :class:`InjectedCompliance`).
+
+``force_N`` in the context is the bench's force before its ``effects`` are added (the static
+force law with the protocol's own hysteresis, transient and softening): an effect that
+scales the force (:class:`InjectedRelativeTemperature`) reads it.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ __all__ = [
     "InjectedDrift",
     "InjectedHysteresis",
     "InjectedMaxwellSlip",
+    "InjectedRelativeTemperature",
     "InjectedTemperature",
     "InjectedViscousDamping",
 ]
@@ -163,20 +168,62 @@ class InjectedTemperature:
         _check_form(self.form, ("linear", "quadratic"), "temperature")
 
     def columns(self, ctx):
-        lo, hi = self.range_C
-        sweep = ctx["sweep"]
-        level = ctx["rng"].uniform(lo, hi, size=sweep.shape[:-1] + (1,))
-        k = ctx["point_fraction"]
-        t = level + self.ramp_K * k
-        if self.resolution_C > 0:
-            t = np.round(t / self.resolution_C) * self.resolution_C
-        return {"temperature_C": t}
+        return {"temperature_C": _thermometer(ctx, self.range_C, self.ramp_K,
+                                              self.resolution_C)}
 
     def force_N(self, ctx):
         dt = ctx["temperature_C"] - self.reference_C
         if self.form == "quadratic":
             dt = dt * np.abs(dt) / 10.0
         return (self.N_per_K + self.N_per_bar_K * ctx["p_bar"]) * dt
+
+
+def _thermometer(ctx, range_C, ramp_K, resolution_C):
+    """The muscle's temperature at each sample (°C): each sweep (or trial) at its own level,
+    drawn uniformly in ``range_C``, creeping by ``ramp_K`` over it, rounded to
+    ``resolution_C``."""
+    lo, hi = range_C
+    level = ctx["rng"].uniform(lo, hi, size=ctx["sweep"].shape[:-1] + (1,))
+    t = level + ramp_K * ctx["point_fraction"]
+    if resolution_C > 0:
+        t = np.round(t / resolution_C) * resolution_C
+    return t
+
+
+@dataclasses.dataclass(frozen=True)
+class InjectedRelativeTemperature:
+    """The force scaled by the muscle's temperature, and the thermometer column that shows it.
+
+    The bladder's rubber changes its modulus with temperature (entropy elasticity: the shear
+    modulus of an ideal network is G = N·k·T, Treloar, The Physics of Rubber Elasticity,
+    3rd ed. 1975, ch. 2 and 4; filled rubbers soften as they warm instead), so the force at
+    a given pressure and contraction changes by a share of itself per kelvin, not by a
+    fixed number of newtons:
+
+        F = F_static·(1 + (per_K + per_bar_K·p)·(T − T_ref)),
+
+    the relative change of the force per kelvin ``per_K + per_bar_K·p`` (1/K; p in bar),
+    negative where the muscle softens as it warms. The muscle's stiffness ∂F/∂κ changes by
+    the same share. ``F_static`` is the bench's force before its ``effects`` (``force_N`` of
+    the context). Temperatures as :class:`InjectedTemperature`'s: each sweep (or trial) at
+    its own level in ``range_C``, creeping by ``ramp_K``, logged as ``temperature_C`` rounded
+    to ``resolution_C``.
+    """
+
+    per_K: float = -0.004
+    per_bar_K: float = 0.0
+    range_C: tuple[float, float] = (20.0, 45.0)
+    ramp_K: float = 1.0
+    reference_C: float = 25.0
+    resolution_C: float = 0.1
+
+    def columns(self, ctx):
+        return {"temperature_C": _thermometer(ctx, self.range_C, self.ramp_K,
+                                              self.resolution_C)}
+
+    def force_N(self, ctx):
+        dt = ctx["temperature_C"] - self.reference_C
+        return ctx["force_N"] * (self.per_K + self.per_bar_K * ctx["p_bar"]) * dt
 
 
 @dataclasses.dataclass(frozen=True)

@@ -350,6 +350,7 @@ def simulate_isometric_bench(
             "point_fraction": t / protocol.trial_duration_s,
             "rng": np.random.default_rng(seed),
         }
+        ctx["force_N"] = force  # what a scaling effect scales
         added, extra_columns = apply_effects(other, ctx, shape)
         force = force + added
 

@@ -228,6 +228,7 @@ def simulate_sarosi_bench(
         key, effect_key = jax.random.split(key)
         seed = int(jax.random.randint(effect_key, (), 0, 2**31 - 1))
         ctx = _effect_context(protocol, p_grid, kappa_true, ends, spp, time, direction, seed)
+        ctx["force_N"] = np.broadcast_to(f_true, time.shape)  # what a scaling effect scales
         added, extra_columns = apply_effects(force_effects, ctx, time.shape)
         f_true = f_true + added  # (C, M, P, D, K)
 
