@@ -9,7 +9,9 @@ The procedure:
    pressure, contraction, force level).
 2. Refit with each candidate effect (:mod:`pamid._diagnose._static`), batched.
 3. Select by BIC and cross-validated error on held-out curves, forward, until nothing
-   significant remains (:mod:`pamid._diagnose._select`).
+   significant remains (:mod:`pamid._diagnose._select`). Where a selected effect leaves its
+   own covariate in the residual, try its other physical form (the temperature as a share
+   of the force rather than newtons; :mod:`pamid._diagnose._forms`) and say which was kept.
 4. Report the ranked candidates, the selected effects' constants with 95 % intervals, the
    error before and after (RMSE, max error, per covariate bin) and what stays unexplained.
 """
@@ -197,6 +199,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
                     max_rows: int | None = None, bounds=None, shape_check: bool = True
                     ) -> Diagnosis:
     from .._fit._spec import get_model
+    from ._forms import form_groups, other_forms
     from ._shape import force_law_shape, shape_suspected
     from ._static import StaticProblem, intervals
 
@@ -216,9 +219,19 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
                      + ("diagnosed with the others, that constant held"
                         if f["diagnosed"] else "left out of the diagnosis"))
     bench = problem.bench  # without the muscles left out
-    result = forward_select(problem.candidate_names, problem.evaluate, problem.covariate_of,
-                            progress=progress, unphysical=problem.unphysical,
-                            refresh=problem.refresh_grids)
+    forms = form_groups(problem)
+
+    def select(candidates):
+        return forward_select(candidates, problem.evaluate, problem.covariate_of,
+                              progress=progress, unphysical=problem.unphysical,
+                              refresh=problem.refresh_grids, forms=forms)
+
+    # A selected effect that leaves its own covariate behind is tried in its other form
+    # (pamid._diagnose._forms): the temperature as a share of the force, not newtons.
+    result, tried_forms = other_forms(problem, select(problem.candidate_names), select)
+    for r in tried_forms:
+        if progress is not None:
+            progress(r["why"])
     suspects = shape_suspected(problem, result) if shape_check else []
     shape = (force_law_shape(problem.bench, spec, result, suspects, n_folds=n_folds,
                              order_is_time=problem.order_is_time, progress=progress)
@@ -255,6 +268,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     d.order_is_time = problem.order_is_time
     d.rows_used, d.rows_total, d.subsample = len(bench.frame), rows_total, note
     d.muscles_flagged = [dict(f) for f in problem.flagged]
+    d.forms = tried_forms
     d.covariates_not_used = [{"column": c, "why": why}
                              for c, why in problem.not_covariates.items()]
     return d

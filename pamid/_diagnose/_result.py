@@ -74,6 +74,11 @@ class Diagnosis:
     #: "diagnosed"}]; diagnosed: its best fit within bounds (a constant the data do not
     #: determine held on its bound) is diagnosed with the others; else left out.
     muscles_flagged: list[dict] = dataclasses.field(default_factory=list)
+    #: Where a selected effect left its own covariate in the residual, the other form tried
+    #: in its place and the one kept, with why (:func:`pamid._diagnose._forms.other_forms`):
+    #: [{"effect", "covariate", "left", "tried", "delta_bic", "cv_rmse_N", "left_by_tried",
+    #: "kept", "why"}].
+    forms: list[dict] = dataclasses.field(default_factory=list)
 
     def __post_init__(self):
         if self.rows_used is None:
@@ -98,6 +103,7 @@ class Diagnosis:
             "residual_after": self.residual_after, "unexplained": self.unexplained,
             "covariates_not_used": self.covariates_not_used,
             "muscles_flagged": self.muscles_flagged,
+            "forms": self.forms,
             "order_is_time": self.order_is_time,
             "model_requested": self.model_requested or self.model,
             "force_law_shape": self.force_law_shape,
@@ -123,6 +129,15 @@ def analyse_residual(table: pd.DataFrame, column: str, covariates: list[str],
             "runs": runs_test(series), "ljung_box": ljung_box(series), "covariates": deps}
 
 
+def depends(dep: dict) -> bool:
+    """Whether a residual depends on a covariate materially: ``dep`` is its
+    :func:`~pamid._diagnose._residual.covariate_dependence`, p below
+    :data:`UNEXPLAINED_P` and at least :data:`UNEXPLAINED_SHARE` of the variance explained."""
+    p = dep["p_value"]
+    return (p is not None and bool(np.isfinite(p)) and p < UNEXPLAINED_P
+            and dep.get("explained_fraction", 1.0) >= UNEXPLAINED_SHARE)
+
+
 def unexplained(analysis: dict, *, runs_test_applies: bool = True,
                 order_is_time: bool = True) -> list[str]:
     """Covariates the final residual still depends on, and ``time_order`` when it is not
@@ -138,10 +153,7 @@ def unexplained(analysis: dict, *, runs_test_applies: bool = True,
     p < :data:`UNEXPLAINED_P`; this only says where the structure lies) — or not at all
     when no covariate does."""
     deps = analysis["covariates"]
-    out = [c for c, d in deps.items()
-           if d["p_value"] is not None and np.isfinite(d["p_value"])
-           and d["p_value"] < UNEXPLAINED_P
-           and d.get("explained_fraction", 1.0) >= UNEXPLAINED_SHARE]
+    out = [c for c, d in deps.items() if depends(d)]
     runs_p = analysis["runs"]["p_value"]
     rho1 = analysis["ljung_box"]["lag1_autocorrelation"]
     not_white = analysis["ljung_box"]["p_value"] < UNEXPLAINED_P or (

@@ -109,13 +109,17 @@ def forward_select(
     progress: Callable[[str], None] | None = None,
     unphysical: Callable[[SetFit, str], str | None] | None = None,
     refresh: Callable[[SetFit], None] | None = None,
+    forms: dict[str, str] | None = None,
 ) -> dict:
     """Run the forward selection; return the baseline, the steps and the final fit.
 
     ``unphysical(fit, name)``: why effect ``name``'s constants in ``fit`` are not physical,
     or None; such a candidate is not significant. ``refresh(fit)``: called with the fit of
     the effects selected so far before the remaining candidates are refitted on top of it
-    (a family may choose its candidates' grid constants again on that fit's residual)."""
+    (a family may choose its candidates' grid constants again on that fit's residual).
+    ``forms``: effect name → the effect it is a form of (``temperature_relative`` →
+    ``temperature``; a name not in it is a form of itself): once one form is added, the
+    others are no longer candidates (two forms of one effect would fit it twice)."""
     say = progress or (lambda _msg: None)
     selected: tuple[str, ...] = ()
     say("fitting the baseline and every candidate")
@@ -153,7 +157,10 @@ def forward_select(
             break
         selected = (*selected, choice["effect"])
         current = choice["fit"]
-        remaining = [r for r in remaining if r != choice["effect"]]
+        # the other forms of the effect just added are no longer candidates
+        form = (forms or {}).get(choice["effect"], choice["effect"])
+        remaining = [r for r in remaining
+                     if r != choice["effect"] and (forms or {}).get(r, r) != form]
         if not remaining:
             break
         say(f"added {choice['effect']}; refitting {len(remaining)} candidates on top")

@@ -23,6 +23,8 @@ effect                 added to the force (N)                   constants
 
 Each effect is one definition in :mod:`pamid._effects._definitions` (its constants, units,
 physical bounds, source and the virtual bench's injector); this module reads that registry.
+The temperature has a second form, ``temperature_relative``: F_model·(α0 + α1·p)·(T − T0)
+added, a share of the force per kelvin (α0 in 1/K, α1 in 1/(bar·K), T0 in °C over a grid).
 
 For ``covariate:<col>`` z is the column scaled to [−1, 1] over the file and P_k are Legendre
 polynomials: a smooth function of any numeric column, so that an effect outside the library
@@ -577,10 +579,14 @@ class StaticProblem:
         return {e.name: e.covariate for e in self.effects}
 
     def constants_of(self, fit: SetFit, name: str, i: int) -> dict[str, float]:
-        """The fitted constants of effect ``name`` in ``fit`` for muscle ``i``, by name."""
-        return {p: float(fit.extra["params"][i][j])
-                for p, j in zip(self.effect(name).param_names, self._index(fit, name),
-                                strict=True)}
+        """The fitted constants of effect ``name`` in ``fit`` for muscle ``i``, by name, and
+        its grid constant where it has one (the transient's τ, the temperature's T0)."""
+        e = self.effect(name)
+        out = {p: float(fit.extra["params"][i][j])
+               for p, j in zip(e.param_names, self._index(fit, name), strict=True)}
+        if e.grid is not None:
+            out[e.grid.name] = float(self.grid_value[name][i])
+        return out
 
     def _index(self, fit: SetFit, name: str) -> list[int]:
         """Positions of effect ``name``'s constants in the lanes' parameter vector."""

@@ -11,7 +11,8 @@ registry that :class:`pamid._diagnose._static.StaticProblem` reads; adding an ef
 adding one definition there. :data:`DECAY_EFFECTS` is the same for free decays
 (:mod:`pamid._decays._coulomb`).
 
-A constant chosen over a small grid (a time constant, a softening scale) is a
+A constant chosen over a small grid (a time constant, a softening scale, a reference
+temperature) is a
 ``grid`` constant: it is chosen per muscle, once, where the baseline's residual (with the
 base model's Jacobian projected out) is best explained by the effect's column of a
 physically allowed sign, and it counts as one more constant in the BIC. The gain that
@@ -182,6 +183,11 @@ class EffectDefinition:
             that bounds cannot state (the loop of a hysteresis must not run backwards).
         family: ``family(file) -> [(name, covariate, constants)]``: for a family of
             effects (``covariate:<col>``), the members in this file.
+        form_of: the effect this one is another physical form of (``temperature_relative``,
+            a share of the force per kelvin, is one of ``temperature``, newtons per
+            kelvin): forms of one effect are never selected together, and where the
+            selected form leaves its covariate in the residual the diagnosis tries the
+            others (:mod:`pamid._diagnose._forms`). None: a form of itself.
     """
 
     name: str
@@ -196,6 +202,7 @@ class EffectDefinition:
     applies: Callable | None = None
     check: Callable | None = None
     family: Callable | None = None
+    form_of: str | None = None
     more: Callable | None = None
 
     @property
@@ -440,7 +447,10 @@ def _temperature() -> EffectDefinition:
 
     Physical reason: the bladder's rubber stiffens or softens with temperature (entropy
     elasticity, Treloar, The Physics of Rubber Elasticity, 1975, ch. 2), changing the force
-    at a given pressure and length. No sign is imposed: both occur. Injector:
+    at a given pressure and length. No sign is imposed: both occur. This additive form
+    also holds a load cell's thermal zero shift (N per kelvin, any strain-gauge datasheet);
+    a modulus that changes with temperature scales the force instead:
+    ``temperature_relative``, its other form. Injector:
     :class:`pamid._effects._inject.InjectedTemperature`.
     """
     def features(m, col, g):
@@ -451,6 +461,75 @@ def _temperature() -> EffectDefinition:
         name="temperature", covariates=("temperature_C",),
         constants=(Constant("tau0", "N/K"), Constant("tau1", "N/(bar·K)")),
         injector="pamid._effects._inject.InjectedTemperature", features=features)
+
+
+#: Reference temperatures T0 of ``temperature_relative``, as shares of the file's range of
+#: temperature w from its mean: T̄ + w·(−2 … 2) in 64 steps (a step of w/16).
+RELATIVE_T0_SHARES = np.linspace(-2.0, 2.0, 65)
+ABSOLUTE_ZERO_C = -273.15
+
+
+def _relative_temperature_t0(file, muscle):
+    lo, hi = file.ranges["temperature_C"]
+    t0 = file.temperature_mean_C + max(hi - lo, 1.0) * RELATIVE_T0_SHARES
+    return t0[t0 > ABSOLUTE_ZERO_C]
+
+
+def _relative_temperature_check(values, file, muscle):
+    """The force's factor 1 + (α0 + α1·p)·(T − T0) must stay positive over the file's
+    pressures and temperatures: a muscle whose force vanished or reversed with temperature
+    alone would not be a muscle (the factor is linear in p and in T: its corners decide)."""
+    (p_lo, p_hi), (t_lo, t_hi) = file.ranges["pressure_kPa"], file.ranges["temperature_C"]
+    t0 = values.get("T0_C", file.temperature_mean_C)
+    for p in (p_lo / KPA_PER_BAR, p_hi / KPA_PER_BAR):
+        for t in (t_lo, t_hi):
+            factor = 1.0 + (values["alpha0"] + values["alpha1"] * p) * (t - t0)
+            if factor <= 0:
+                return (f"temperature_relative would need the force scaled by "
+                        f"1 + (α0 + α1·p)·(T − T0) = {factor:.3g} ≤ 0 at p = {p:.3g} bar, "
+                        f"T = {t:.4g} °C (T0 = {t0:.4g} °C: a force that vanishes or "
+                        "reverses with temperature): not physical")
+    return None
+
+
+def _temperature_relative() -> EffectDefinition:
+    """The force scaled by the muscle's temperature: F = F_model·(1 + (α0 + α1·p)·(T − T0)),
+    α0 + α1·p the relative change of the force per kelvin (1/K; p in bar), T0 the
+    temperature at which the force law F_model holds.
+
+    Physical reason: the bladder's rubber changes its modulus with temperature — for an
+    ideal network the shear modulus is G = N·k·T (entropy elasticity; Treloar, The Physics
+    of Rubber Elasticity, 3rd ed. 1975, ch. 2 and 4), a relative change of 1/T ≈ +0.34 %
+    per kelvin at 20 °C; filled rubbers soften as they warm instead. A modulus that changes
+    scales the force the rubber carries by a share of itself per kelvin, not by a fixed
+    number of newtons, and the muscle's stiffness ∂F/∂κ by the same share. The share may
+    depend on the pressure (the rubber's part of the force is a different share of it at
+    each pressure): α1. No sign is imposed; the factor must stay positive over the file
+    (:func:`_relative_temperature_check`). F_model is the baseline fit.
+
+    T0 matters where α1 ≠ 0: at the file's mean temperature T̄ the force is then
+    F_model·(1 + α1·p·(T̄ − T0)), a pressure-dependent share that no law fitted at T̄ holds
+    (left to itself, the compliance and the sensor offset stand in for it). T0 is chosen
+    per muscle over a grid (:data:`RELATIVE_T0_SHARES` of the file's range of temperature
+    around T̄, above absolute zero) as the module text describes, by the pressure's term
+    (listed first for that reason); α0·(T̄ − T0) only rescales F_model. This is the other
+    form of ``temperature`` (additive, N/K): the two are never selected together.
+    Injector: :class:`pamid._effects._inject.InjectedRelativeTemperature`.
+    """
+    def features(m, col, t0):
+        dt = col("temperature_C") - t0
+        return [m.baseline_N * dt * m.p_bar, m.baseline_N * dt]
+
+    return EffectDefinition(
+        name="temperature_relative", covariates=("temperature_C",),
+        constants=(Constant("alpha1", "1/(bar·K)",
+                            meaning="change per bar of the force's relative change per kelvin"),
+                   Constant("alpha0", "1/K", meaning="relative change of the force per kelvin")),
+        injector="pamid._effects._inject.InjectedRelativeTemperature", features=features,
+        grid=Constant("T0_C", "°C", lower=ABSOLUTE_ZERO_C,
+                      meaning="the temperature at which the force law holds"),
+        grid_values=_relative_temperature_t0,
+        check=_relative_temperature_check, form_of="temperature")
 
 
 def _drift() -> EffectDefinition:
@@ -664,8 +743,8 @@ def _sensor_offset() -> EffectDefinition:
 
 #: Every candidate effect of a static diagnosis, in the order they are listed.
 STATIC_EFFECTS: tuple[EffectDefinition, ...] = (
-    _hysteresis(), _temperature(), _drift(), _viscous_damping(), _transient(), _softening(),
-    _covariate(), _compliance(), _sensor_offset(),
+    _hysteresis(), _temperature(), _temperature_relative(), _drift(), _viscous_damping(),
+    _transient(), _softening(), _covariate(), _compliance(), _sensor_offset(),
 )
 
 

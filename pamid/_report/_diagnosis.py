@@ -103,6 +103,8 @@ def diagnosis_report(d) -> str:
                      f"{_p(r['cv_p_value'])})")
         if r.get("unphysical"):
             lines.append(f"       {r['unphysical']}")
+    for r in getattr(d, "forms", []):
+        lines.append(f"     form: {r['why']}")
     lines.append(f"   selected: {', '.join(d.selected) if d.selected else 'none'}")
     if d.selected:
         lines.append("   constants with 95 % intervals:")
