@@ -188,6 +188,8 @@ class EffectDefinition:
             kelvin): forms of one effect are never selected together, and where the
             selected form leaves its covariate in the residual the diagnosis tries the
             others (:mod:`pamid._diagnose._forms`). None: a form of itself.
+        more: ``more(file) -> constants`` that join :attr:`constants` where the file
+            allows them (the hysteresis' slip elements, where the rows have a time order).
     """
 
     name: str
