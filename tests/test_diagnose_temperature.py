@@ -155,6 +155,20 @@ def test_forward_selection_never_takes_two_forms_of_one_effect():
     assert sorted(out["selected"]) == ["a", "b"]
 
 
+def test_the_members_of_a_family_are_not_forms_of_each_other():
+    """``covariate:<col>`` of two columns are two effects (a pooled AARL fit selects the
+    pressure's and the pressure rate's together): only ``form_of`` joins effects."""
+    defs = {d.name: d for d in STATIC_EFFECTS}
+    effects = [SimpleNamespace(name=n, definition=defs[d]) for n, d in (
+        ("temperature", "temperature"), ("temperature_relative", "temperature_relative"),
+        ("covariate:pressure_kPa", "covariate"),
+        ("covariate:pressure_rate_kPa_s", "covariate"), ("hysteresis", "hysteresis"))]
+    groups = form_groups(SimpleNamespace(effects=effects))
+    assert groups["temperature_relative"] == groups["temperature"] == "temperature"
+    assert groups["covariate:pressure_kPa"] != groups["covariate:pressure_rate_kPa_s"]
+    assert groups["hysteresis"] == "hysteresis"
+
+
 # -- force-scaling temperature hidden in each protocol ---------------------------------------
 
 

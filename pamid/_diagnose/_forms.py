@@ -44,7 +44,7 @@ __all__ = ["form_groups", "other_forms", "residual_dependence"]
 
 def form_groups(problem) -> dict[str, str]:
     """Every candidate's name → the effect it is a form of (its own name for most)."""
-    return {e.name: e.definition.form_of or e.definition.name for e in problem.effects}
+    return {e.name: e.definition.form_of or e.name for e in problem.effects}
 
 
 def residual_dependence(problem, fit, covariate: str) -> dict:
