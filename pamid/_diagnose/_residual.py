@@ -10,6 +10,14 @@ time within each group.
   χ² with ``lags`` degrees of freedom under whiteness; summed over groups (independent
   groups add their Q and degrees of freedom). The pooled lag-1 autocorrelation is reported
   as the size of the effect.
+* Effective sample size (:func:`effective_sample_size`): the n independent samples whose
+  mean is as variable as that of the n samples of a dependent residual, n_eff = n/τ with
+  τ = 1 + 2·Σ_k ρ_k the integrated autocorrelation time (Bayley and Hammersley, 1946;
+  (1 + ρ)/(1 − ρ) for an AR(1) process). τ is summed over Sokal's self-consistent window,
+  the fewest lags M with M ≥ 5·τ(M) (Madras and Sokal, 1988; as emcee's
+  ``integrated_time``): a residual that is white noise plus a slow wander has a small lag-1
+  autocorrelation but a long τ, which the AR(1) formula from ρ_1 would miss. The
+  selection's BIC uses it (:mod:`pamid._diagnose._select`).
 * Covariate dependence: the residual regressed on Legendre polynomials P1…P3 of the
   covariate scaled to [−1, 1], and on their products with the direction of motion when it
   is known (so a loop that changes with the covariate shows too), against the mean alone
@@ -26,7 +34,15 @@ import numpy as np
 from .._effects._basis import legendre_basis, scaled
 from .._inference import numerical_rank
 
-__all__ = ["covariate_dependence", "ljung_box", "runs_test", "scaled", "legendre_basis"]
+__all__ = ["autocorrelation_time", "covariate_dependence", "effective_sample_size",
+           "ljung_box", "runs_test", "scaled", "legendre_basis"]
+
+#: A residual whose lag-1 autocorrelation is below this many of its standard errors (1/√n
+#: for a white series: Bartlett, 1946) is taken as white by :func:`autocorrelation_time`
+#: (τ = 1): a white residual estimates ρ_1 ≈ ±1/√n, and its n_eff stays n (the plain BIC).
+RHO_STANDARD_ERRORS = 3.0
+#: Sokal's window constant: τ is summed over the fewest lags M with M ≥ SOKAL_C·τ(M).
+SOKAL_C = 5.0
 
 
 def runs_test(residuals: list[np.ndarray]) -> dict:
@@ -69,10 +85,52 @@ def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
     from scipy import stats
 
     p = float(stats.chi2.sf(q, dof)) if dof else math.nan
-    num = sum(float((r - np.mean(r))[1:] @ (r - np.mean(r))[:-1]) for r in residuals if len(r) > 1)
-    den = sum(float((r - np.mean(r)) @ (r - np.mean(r))) for r in residuals)
-    rho1 = num / den if den > 0 else math.nan
+    num, den = np.sum([_lag1_sums(r) for r in residuals], axis=0) if residuals else (0.0, 0.0)
+    rho1 = float(num / den) if den > 0 else math.nan
     return {"q": q, "dof": dof, "lags": lags, "p_value": p, "lag1_autocorrelation": rho1}
+
+
+def _lag1_sums(r: np.ndarray) -> tuple[float, float]:
+    """Σ r_t·r_(t−1) and Σ r_t², of r less its mean."""
+    r = np.asarray(r, float)
+    if len(r) < 2:
+        return 0.0, 0.0
+    r = r - np.mean(r)
+    return float(r[1:] @ r[:-1]), float(r @ r)
+
+
+def autocorrelation_time(r: np.ndarray) -> tuple[float, float]:
+    """(τ, ρ_1) of one group's time-ordered residual (its mean removed): the integrated
+    autocorrelation time over Sokal's window (module text) and the lag-1 autocorrelation.
+
+    τ = 1 where ρ_1 < :data:`RHO_STANDARD_ERRORS`/√n (white within its noise) and where the
+    residual is constant; otherwise at least 1, and where no window up to n/2 lags is
+    self-consistent (a series too short for its dependence) the sum up to n/2 lags.
+    """
+    r = np.asarray(r, float)
+    n = len(r)
+    num, den = _lag1_sums(r)
+    if n < 3 or den <= 0:
+        return 1.0, math.nan
+    rho1 = num / den
+    if rho1 < RHO_STANDARD_ERRORS / math.sqrt(n):
+        return 1.0, rho1
+    x = r - np.mean(r)
+    size = 1 << (2 * n - 1).bit_length()  # zero-padded: the linear, not circular, sums
+    f = np.fft.rfft(x, size)
+    acf = np.fft.irfft(f * np.conj(f), size)[: n // 2 + 1]
+    acf = acf / acf[0]
+    taus = 2.0 * np.cumsum(acf) - 1.0  # τ(M) = 1 + 2·Σ_{k=1..M} ρ_k
+    ok = np.flatnonzero(np.arange(len(taus)) >= SOKAL_C * taus)
+    tau = taus[ok[0]] if len(ok) else taus[-1]
+    return max(1.0, float(tau)), rho1
+
+
+def effective_sample_size(n, tau):
+    """n/τ per group (module text), at least 2; n itself where τ is 1 or unknown (NaN)."""
+    n = np.asarray(n, float)
+    tau = np.nan_to_num(np.asarray(tau, float), nan=1.0)
+    return np.where(tau > 1.0, np.maximum(n / np.maximum(tau, 1.0), 2.0), n)
 
 
 def _demean(values: np.ndarray, groups: np.ndarray) -> np.ndarray:
