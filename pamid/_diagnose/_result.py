@@ -79,6 +79,12 @@ class Diagnosis:
     #: [{"effect", "covariate", "left", "tried", "delta_bic", "cv_rmse_N", "left_by_tried",
     #: "kept", "why"}].
     forms: list[dict] = dataclasses.field(default_factory=list)
+    #: How the selection judged (:func:`pamid._diagnose._select.forward_select`): its
+    #: thresholds, and per group the rows n, the lag-1 autocorrelation of the residual and
+    #: the effective sample size n_eff, of the baseline and of the final fit. Every
+    #: candidate row and every dropped effect also says its ``n_eff`` and which criterion
+    #: decided (``decided_by``).
+    selection: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         if self.rows_used is None:
@@ -104,6 +110,7 @@ class Diagnosis:
             "covariates_not_used": self.covariates_not_used,
             "muscles_flagged": self.muscles_flagged,
             "forms": self.forms,
+            "selection": self.selection,
             "order_is_time": self.order_is_time,
             "model_requested": self.model_requested or self.model,
             "force_law_shape": self.force_law_shape,
@@ -188,5 +195,5 @@ def build_diagnosis(path, kind, model, groups, result, before, after, constants,
         steps=[{**{k: v for k, v in s.items() if k != "candidates"},
                 "candidates": _candidate_rows(s["candidates"])} for s in result["steps"]],
         constants=constants, residual_before=before, residual_after=after,
-        unexplained=unexplained, table=table,
+        unexplained=unexplained, table=table, selection=result.get("selection", {}),
     )

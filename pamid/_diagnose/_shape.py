@@ -90,7 +90,8 @@ def force_law_shape(bench, spec, result, suspects, *, n_folds: int, order_is_tim
     if not others:
         return None
     law = others[0]
-    bic_best = base.bic + best["delta_bic"]
+    bic_best = best["fit"].bic  # the plain BIC, as the laws' (the row's ΔBIC is the
+    # selection's, with effective sample sizes: pamid._diagnose._select)
     better = law["bic"] < bic_best and law["bic"] < final.bic
     if order_is_time:
         better &= law["cv_rmse_N"] < best["cv_rmse"] and law["cv_rmse_N"] < final.cv_rmse
