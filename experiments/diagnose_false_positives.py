@@ -59,6 +59,9 @@ HIDDEN = (
     ("sensor_offset", "sensor_offset", {"pressure_offset_kPa": -30.0}, False),
     ("drift", "drift", {"effects": (pamid.InjectedDrift(N_per_hour=100.0),)}, False),
     ("temperature", "temperature", {"effects": (pamid.InjectedTemperature(),)}, False),
+    # a rubber softening as it warms: −0.2 % of the force per kelvin (issue #30, item 2)
+    ("temperature_relative", "temperature_relative",
+     {"effects": (pamid.InjectedRelativeTemperature(per_K=-0.002),)}, False),
 )
 DETECT_ROWS = 1260
 
@@ -81,7 +84,7 @@ def detection(n_files: int, tmp: Path) -> dict:
             clean, d = diagnose(paths[0]), diagnose(paths[1])
             rows.append({"seed": seed, "selected": d.selected,
                          "rmse_after_over_noise": d.rmse_after / clean.rmse_before})
-            print(f"{label:<14} seed {seed}  selected: {', '.join(d.selected) or '-'}  "
+            print(f"{label:<20} seed {seed}  selected: {', '.join(d.selected) or '-'}  "
                   f"RMSE after / noise {rows[-1]['rmse_after_over_noise']:.3f}", flush=True)
         ratio = np.array([r["rmse_after_over_noise"] for r in rows])
         out[label] = {"effect": name, "files": n_files,
@@ -157,10 +160,10 @@ def main(argv=None) -> int:
         with tempfile.TemporaryDirectory() as tmp:
             det = detection(args.detect, Path(tmp))
         print()
-        print(f"{'effect':<14} {'files':>6} {'named alone':>12} {'found':>6}  RMSE after / noise "
+        print(f"{'effect':<20} {'files':>6} {'named alone':>12} {'found':>6}  RMSE after / noise "
               "(median, max)")
         for name, r in det.items():
-            print(f"{name:<14} {r['files']:>6} {r['named_alone']:>12} {r['found']:>6}  "
+            print(f"{name:<20} {r['files']:>6} {r['named_alone']:>12} {r['found']:>6}  "
                   f"{r['rmse_after_over_noise_median']:.3f}, {r['rmse_after_over_noise_max']:.3f}")
         print(f"({time.perf_counter() - start:.0f} s)")
         write_text_atomic(args.out / "detection.json", json.dumps(json_ready(det), indent=1))

@@ -1034,6 +1034,20 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
                     consts[f"{pname}_mm_per_N"] = {
                         "value": v * scale, "ci95": [float(lo) * scale, float(hi) * scale],
                         "unit": "mm/N"}
+            for dname, unit, weights in (e.definition.derived(problem.file)
+                                         if e.definition.derived is not None else ()):
+                # a linear combination of the constants, its variance wᵀ·Σ·w
+                w = np.zeros(len(params[i]))
+                for pname, weight in weights.items():
+                    w[idx[e.param_names.index(pname)]] = weight
+                v = float(w @ params[i])
+                var = (float(w @ cov_un[i] @ w) * residual_variance(fit.sse[i], dof)
+                       if fit.extra["full_rank"][i] else math.nan)
+                lo, hi = wald_interval(v, math.sqrt(max(var, 0.0)) if np.isfinite(var)
+                                       else math.nan, dof, level)
+                consts[dname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit,
+                                 "derived": " + ".join(f"{wt:g}·{pn}"
+                                                       for pn, wt in weights.items())}
             if e.grid is not None:
                 consts[e.grid.name] = {"value": problem.grid_value[name][i],
                                        "ci95": [math.nan, math.nan], "unit": e.grid.unit,

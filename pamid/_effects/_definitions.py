@@ -190,6 +190,9 @@ class EffectDefinition:
             others (:mod:`pamid._diagnose._forms`). None: a form of itself.
         more: ``more(file) -> constants`` that join :attr:`constants` where the file
             allows them (the hysteresis' slip elements, where the rows have a time order).
+        derived: ``derived(file) -> [(name, unit, {constant: weight})]``: linear
+            combinations of the constants reported beside them with their intervals (the
+            hysteresis loop's half height, which its jump and slip elements share).
     """
 
     name: str
@@ -206,6 +209,7 @@ class EffectDefinition:
     family: Callable | None = None
     form_of: str | None = None
     more: Callable | None = None
+    derived: Callable | None = None
 
     @property
     def injectors(self) -> tuple[str, ...]:
@@ -399,6 +403,20 @@ def slip_features(m: MuscleContext) -> np.ndarray:
     return m.memo["slip"]
 
 
+def _hysteresis_half_height(file: FileContext):
+    """The loop's half height at 3 bar once every slip element slides (a loop over the
+    input's whole range: the largest threshold is 0.4 of it): h0 + 3·h1 + Σ_i (h0_i +
+    3·h1_i) N. The jump and the slip elements may share one loop between them (an element
+    whose threshold is half a valve step slides within the step, as the jump does); this
+    sum is what the data fix where loops at 3 bar span the range (isometric tests), and an
+    extrapolation where they do not (a sweep at 3 bar contracts less than at the top
+    pressure), which its interval does not include."""
+    weights = {"h0": 1.0, "h1": 3.0}
+    for k in _slip_labels(file):
+        weights |= {f"h0_r{k}": 1.0, f"h1_r{k}": 3.0}
+    return [("half_height_at_3bar", "N", weights)]
+
+
 def _hysteresis_features(m, col, g):
     d = col("direction")
     out = [-d, -d * m.p_bar]
@@ -441,6 +459,7 @@ def _hysteresis() -> EffectDefinition:
         features=_hysteresis_features,
         check=_hysteresis_check,
         more=_slip_constants,
+        derived=_hysteresis_half_height,
     )
 
 
