@@ -222,7 +222,7 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     forms = form_groups(problem)
 
     def select(candidates):
-        return forward_select(candidates, _with_dependence(problem), problem.covariate_of,
+        return forward_select(candidates, problem.evaluate, problem.covariate_of,
                               progress=progress, unphysical=problem.unphysical,
                               refresh=problem.refresh_grids, forms=forms)
 
@@ -272,27 +272,6 @@ def _diagnose_bench(bench, model: str, n_folds: int, progress,
     d.covariates_not_used = [{"column": c, "why": why}
                              for c, why in problem.not_covariates.items()]
     return d
-
-
-def _with_dependence(problem):
-    """``problem.evaluate`` whose fits carry each muscle's autocorrelation time and lag-1
-    autocorrelation of the residual on all data, its rows in file order (the selection's
-    effective sample size, :mod:`pamid._diagnose._select`); in a map (no time order) rows
-    are not a time series, and the fits carry none (n_eff = n)."""
-    from ._residual import autocorrelation_time
-
-    w = np.asarray(problem.data.w)
-
-    def evaluate(sets):
-        fits = problem.evaluate(sets)
-        if problem.order_is_time:
-            for fit in fits:
-                resid = np.asarray(fit.extra["residual"], float)
-                fit.tau, fit.rho1 = np.array([autocorrelation_time(resid[i][w[i] > 0])
-                                              for i in range(len(resid))]).T
-        return fits
-
-    return evaluate
 
 
 def _long_table(problem, base, final) -> pd.DataFrame:

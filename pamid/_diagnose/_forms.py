@@ -25,7 +25,8 @@ judged to have left its own covariate behind where
   variance).
 
 Then each other form is fitted in its place, the rest of the selected set (without the
-generic) kept. A form whose set has a lower BIC and a lower cross-validated RMSE, with
+generic) kept. A form whose set has a lower BIC (the selection's, with each muscle's effective
+sample size: :func:`pamid._diagnose._select.delta_bic`) and a lower cross-validated RMSE, with
 physical constants, replaces it: the selection is run again without the form that left its
 covariate behind, so that no effect stays selected that only stood in for the wrong form.
 Otherwise the selected form is kept. Either way the diagnosis says which form it kept and
@@ -38,6 +39,7 @@ import numpy as np
 
 from ._residual import covariate_dependence
 from ._result import depends
+from ._select import delta_bic
 
 __all__ = ["form_groups", "other_forms", "residual_dependence"]
 
@@ -98,7 +100,7 @@ def other_forms(problem, result: dict, select) -> tuple[dict, list[dict]]:
         rows = []
         for o, fit in zip(others, problem.evaluate(sets), strict=True):
             bad = problem.unphysical(fit, o)
-            d_bic = fit.bic - base.bic
+            d_bic = delta_bic(base, fit)  # the selection's, n_eff where the residual is not white
             better = (bool(np.all(fit.converged)) and bad is None and d_bic < 0
                       and fit.cv_rmse < base.cv_rmse)
             rows.append({"effect": name, "covariate": covariate, "left": left,

@@ -75,7 +75,7 @@ from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
 from .._inference import residual_variance, unscaled_covariance, wald_interval
 from .._units import KPA_PER_BAR
-from ._residual import legendre_basis, scaled
+from ._residual import autocorrelation_time, legendre_basis, scaled
 from ._select import SetFit
 
 N_FOLDS = 5
@@ -710,6 +710,13 @@ class StaticProblem:
                        "residual": resid[full], "slots": slots[i],
                        "compliance": bool(implicit[i])},
             ))
+            if self.order_is_time:
+                # each muscle's residual on all data as a time series: its autocorrelation
+                # time and lag-1 autocorrelation (the selection's effective sample size,
+                # pamid._diagnose._select); a map's rows are not one, and carry none (n_eff = n)
+                r = resid[full]
+                results[-1].tau, results[-1].rho1 = np.array(
+                    [autocorrelation_time(r[k][w[k] > 0]) for k in range(len(r))]).T
         return results
 
     def _shared_arrays(self):
