@@ -226,7 +226,7 @@ def test_effect_detected_named_and_removed_in_isometric_file(tmp_path, clean, na
 def test_hysteresis_in_isometric_file_and_told_from_transient(tmp_path, clean):
     """Inflating below, deflating above (with the valve's direction logged): hysteresis,
     not a transient; a transient read as hysteresis would need h < 0 (a loop run
-    backwards) and is refused."""
+    backwards), which the fit never reaches (every element of the loop is held ≥ 0)."""
     d = diagnose(_iso(tmp_path, "hyst", drop_direction=False, hysteresis_N_at_3_bar=9.0))
     assert d.selected == ["hysteresis"]
     assert d.rmse_after < 1.05 * clean.rmse_before

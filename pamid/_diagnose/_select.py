@@ -39,8 +39,9 @@ given the others: an effect is dropped only on evidence other than that it was a
 (an effect added later that explains it).
 
 A candidate whose fitted constants land at or past a physical bound (a negative compliance,
-a hysteresis loop run backwards: :mod:`pamid._effects._definitions`) is never significant,
-however much it lowers the BIC; its row says what it would have needed (``unphysical``).
+a transient lagging by more than its whole step: :mod:`pamid._effects._definitions`) is
+never significant, however much it lowers the BIC; its row says what it would have needed
+(``unphysical``).
 """
 
 from __future__ import annotations

@@ -180,7 +180,7 @@ class EffectDefinition:
         grid: a constant chosen over ``grid_values(file, muscle)`` (see the module).
         applies: ``applies(file) -> bool``, beyond having its covariates.
         check: ``check(values, file, muscle) -> message or None``: a physical condition
-            that bounds cannot state (the loop of a hysteresis must not run backwards).
+            that bounds cannot state (a transient must not lag by more than its whole step).
         family: ``family(file) -> [(name, covariate, constants)]``: for a family of
             effects (``covariate:<col>``), the members in this file.
         form_of: the effect this one is another physical form of (``temperature_relative``,
@@ -340,18 +340,6 @@ def _relaxation(steps, time_s, trial, tau):
 # -- the static effects --------------------------------------------------------------------
 
 
-def _hysteresis_check(values, file, muscle):
-    p = file.pressure_median_bar
-    h = values["h0"] + values["h1"] * p
-    slip = sum(values.get(f"h0_r{k}", 0.0) + values.get(f"h1_r{k}", 0.0) * p
-               for k in _slip_labels(file))
-    if h + slip < 0:
-        what = "h = h0 + h1·p" if not slip else "the loop's half height h0 + h1·p + Σ slip"
-        return (f"hysteresis would need {what} = {h + slip:.3g} N < 0 at the median pressure "
-                f"{p:.3g} bar (a loop run backwards gains energy): not physical")
-    return None
-
-
 #: Thresholds of the hysteresis' slip elements, as shares of the range of the moving input
 #: over the muscle's rows: an element of share q slides once the input has moved by 2q of
 #: its range since the last reversal. 0.4 is the largest that still slides within the range
@@ -442,8 +430,10 @@ def _hysteresis() -> EffectDefinition:
     i on the moving input (the pressure in an isometric test, the contraction in a sweep;
     :mod:`pamid._effects._slip`), of threshold :data:`SLIP_SHARES` of the input's range;
     its slip force h0_i + h1_i·p has a part from the braid's pretension and one from the
-    pressure's normal force (Tondu and Lopez 2000), both ≥ 0, held so by the fit (an
-    element at 0 is absent). The loop's half height at the median pressure must be ≥ 0.
+    pressure's normal force (Tondu and Lopez 2000). Every element dissipates — the jump
+    too: a jump the wrong way at a reversal would be a loop run backwards there, which
+    gains energy — so h0, h1, h0_i and h1_i are ≥ 0, held so by the fit (an element at 0
+    is absent), and no loop the physics forbids is ever fitted, let alone reported.
     Unlike the transient it does not relax at a held input. Injectors:
     :class:`pamid._effects._inject.InjectedHysteresis` (and
     ``IsometricProtocol.hysteresis_N_at_3_bar``),
@@ -451,13 +441,13 @@ def _hysteresis() -> EffectDefinition:
     """
     return EffectDefinition(
         name="hysteresis", covariates=("direction",),
-        constants=(Constant("h0", "N"), Constant("h1", "N/bar")),
+        constants=(Constant("h0", "N", lower=0.0, held=True),
+                   Constant("h1", "N/bar", lower=0.0, held=True)),
         injector=("pamid._effects._inject.InjectedHysteresis",
                   "pamid._effects._inject.InjectedMaxwellSlip",
                   "pamid._virtual._isometric.IsometricProtocol.hysteresis_N_at_3_bar",
                   "pamid._virtual._sweeps.SarosiProtocol.hysteresis_N_per_bar"),
         features=_hysteresis_features,
-        check=_hysteresis_check,
         more=_slip_constants,
         derived=_hysteresis_half_height,
     )
