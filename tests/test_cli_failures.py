@@ -311,7 +311,9 @@ def test_lane_temporaries_grow_linearly_with_the_rows(tmp_path):
         k = problem.spec.n_params
         args = (np.zeros(lanes, int), np.arange(lanes) % 6,
                 np.tile(np.arange(4), (lanes, 1)), np.ones((lanes, n_tr + 4)),
-                np.ones((lanes, k)), np.tile(np.asarray(problem.theta0)[0], (lanes, 1)))
+                np.ones((lanes, k)), np.tile(np.asarray(problem.theta0)[0], (lanes, 1)),
+                # the effects' bounds (transforms, then the 4 slots): unbounded here
+                np.full((lanes, n_tr + 4), -np.inf), np.full((lanes, n_tr + 4), np.inf))
         compiled = _static._solve_lanes_jit.lower(
             problem.spec, True, problem._shared_arrays(), *args).compile()
         temps[rows] = compiled.memory_analysis().temp_size_in_bytes
