@@ -31,9 +31,11 @@ demo: $(WARM)
 
 # Two worker processes, each taking whole test files (module fixtures are shared within a
 # file): both cores busy, and no one process compiling the whole suite's programs (a single
-# process crashed inside XLA late in the run, three times in one day, 2026-11-24).
+# process crashed inside XLA late in the run, three times in one day, 2026-11-24). A worker
+# that crashes ends the run at once: pytest-xdist 3.8 replaces it and then hangs under
+# --dist loadfile (pytest-xdist issues 784 and 1378), which CI saw as a 90-minute timeout.
 test: $(STAMP)
-	$(VPY) -m pytest -q -n 2 --dist loadfile
+	$(VPY) -m pytest -q -n 2 --dist loadfile --max-worker-restart=0
 
 bench: $(STAMP)
 	$(VPY) benchmarks/fit_batch.py

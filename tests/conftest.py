@@ -172,6 +172,19 @@ def _compilation_cache_of_the_run(tmp_path_factory):
             os.environ[k] = v
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _programs_below_the_region_limit():
+    """After each test file: a worker that nears the system's limit on memory regions
+    (``vm.max_map_count``) drops its compiled programs, as pamid's own lanes do
+    (``pamid/_fit/_programs.py``). Each test worker compiles thousands of programs, about
+    3.4 regions each; at 96 % of the suite one crossed 65,530 regions and died of a
+    segmentation fault inside XLA, and the run then hung (CI, 2026-11-27)."""
+    yield
+    from pamid._fit._programs import release_if_crowded
+
+    release_if_crowded(force_look=True)
+
+
 #: The installed command, as a user runs it (in a subprocess).
 PAMID = [sys.executable, "-m", "pamid._cli"]
 

@@ -20,6 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from . import _export_cache
+from ._programs import release_if_crowded
 from ._sharding import chosen_devices, lane_devices, lane_sharding, lanes_per_call
 
 
@@ -243,9 +244,14 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
 
     ``cache_key``: a name for ``fn`` and everything it closes over; on one device, calls then
     go through the exported program kept on disk when :mod:`._export_cache` is on.
+
+    A process that has compiled so many programs that it nears the system's limit on its
+    memory regions drops them first (:func:`._programs.release_if_crowded`): a long study
+    would otherwise die of a segmentation fault inside XLA.
     """
     import jax
 
+    release_if_crowded()
     leaves = jax.tree.leaves(arrays)
     n = leaves[0].shape[0]
     devices = lane_devices()
