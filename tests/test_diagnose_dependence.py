@@ -22,6 +22,7 @@ from pamid._diagnose._api import diagnose
 from pamid._diagnose._residual import autocorrelation_time, effective_sample_size
 from pamid._diagnose._select import SetFit, delta_bic, judge
 from pamid._virtual._isometric import virtual_lab_file
+from pamid.report import diagnosis_report
 
 ROWS = 3000
 RHO = 0.98
@@ -118,6 +119,17 @@ def test_autocorrelated_error_alone_selects_nothing(tmp_path):
     # the dependence was seen: far fewer effective samples than rows
     assert sel["n_eff_baseline"][0] < 0.2 * sel["n"][0]
     assert all(c["decided_by"] and c["n_eff"] < 0.2 * sel["n"][0] for c in d.candidates)
+    # the report says on how many effective samples, and what refused each candidate
+    text = diagnosis_report(d)
+    assert f"n_eff = {sum(sel['n_eff_baseline']):.0f} of {sum(sel['n']):.0f} rows" in text
+    assert "significant = ΔBIC < −10 on the effective sample size" in text
+    refused = {"bic": "no (ΔBIC)", "held_out_share": "no (held-out gain too small)",
+               "held_out_test": "no (held-out units not better)"}
+    for c in d.candidates:
+        if c["decided_by"] in refused and not c.get("unphysical"):
+            assert any(line.lstrip().startswith(c["effect"] + " ")
+                       and line.rstrip().endswith(refused[c["decided_by"]])
+                       for line in text.splitlines()), c["effect"]
 
 
 def test_a_real_effect_under_an_autocorrelated_error_is_found_and_nothing_dropped(tmp_path):

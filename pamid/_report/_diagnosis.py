@@ -18,6 +18,38 @@ def _p(p) -> str:
     return f"{p:.1e}" if p < 1e-3 else f"{p:.3f}"
 
 
+#: What refused a candidate (``decided_by`` of :func:`pamid._diagnose._select.judge`), as
+#: the report's "significant" column says it.
+_REFUSED_BY = {"not_converged": "no (refit not converged)", "unphysical": "no (not physical)",
+               "bic": "no (ΔBIC)", "held_out_share": "no (held-out gain too small)",
+               "held_out_test": "no (held-out units not better)"}
+
+
+def _verdict(r: dict) -> str:
+    if r["significant"]:
+        return "yes"
+    if r.get("unphysical"):
+        return _REFUSED_BY["unphysical"]
+    return _REFUSED_BY.get(r.get("decided_by"), "no")
+
+
+def _judge_lines(sel: dict) -> list[str]:
+    """How the candidates were judged, with the selection's own thresholds and the
+    baseline residual's effective sample size (:mod:`pamid._diagnose._select`)."""
+    bic = sel.get("bic_threshold", 10.0)
+    share = sel.get("cv_share")
+    lines = ["2. Candidate effects, each refitted against the baseline; significant = ΔBIC < "
+             f"−{bic:g} on the effective sample size n_eff (rows over the residual's "
+             "autocorrelation time)"
+             + (f", held-out error lower by ≥ {100 * share:g} %" if share is not None else "")
+             + (f" and held-out units predicted better (Wilcoxon p < {sel['cv_p']:g}, ≥ "
+                f"{sel['cv_min_units']} units)" if "cv_p" in sel else "") + ":"]
+    n, n_eff = sel.get("n"), sel.get("n_eff_baseline")
+    if n and n_eff:
+        lines.append(f"     baseline residual: n_eff = {sum(n_eff):.0f} of {sum(n):.0f} rows")
+    return lines
+
+
 def _ci(c: dict) -> str:
     lo, hi = c["ci95"]
     return f"{c['value']:.4g} {c['unit']}  [{lo:.4g}, {hi:.4g}]"
@@ -68,14 +100,16 @@ def diagnosis_report(d) -> str:
         share = dep.get("explained_fraction", math.nan)
         lines.append(f"     {c:<24} p = {_p(dep['p_value']):>8}   {100 * share:5.1f} %")
     lines.append("")
-    lines.append("2. Candidate effects, each refitted against the baseline (ΔBIC < −10 and a "
-                 "lower cross-validated RMSE = significant):")
-    lines.append(f"     {'effect':<28} {'covariate':<20} {'ΔBIC':>10} {'CV RMSE':>10}  significant")
+    lines += _judge_lines(getattr(d, "selection", {}) or {})
+    ew = max([28] + [len(r["effect"]) for r in d.candidates])
+    cw = max([20] + [len(r["covariate"]) for r in d.candidates])
+    lines.append(f"     {'effect':<{ew}} {'covariate':<{cw}} {'ΔBIC':>10} {'n_eff':>8} "
+                 f"{'CV RMSE':>10}  significant")
     for r in d.candidates:
-        verdict = "yes" if r["significant"] else (
-            "no (not physical)" if r.get("unphysical") else "no")
-        lines.append(f"     {r['effect']:<28} {r['covariate']:<20} {r['delta_bic']:>10.1f} "
-                     f"{r['cv_rmse']:>10.4g}  {verdict}")
+        n_eff = r.get("n_eff")
+        n_eff = f"{n_eff:>8.0f}" if n_eff is not None and np.isfinite(n_eff) else f"{'—':>8}"
+        lines.append(f"     {r['effect']:<{ew}} {r['covariate']:<{cw}} {r['delta_bic']:>10.1f} "
+                     f"{n_eff} {r['cv_rmse']:>10.4g}  {_verdict(r)}")
     # Effects the data would support but whose constants are past a physical bound.
     seen = set()
     for s in d.steps:
@@ -112,9 +146,10 @@ def diagnosis_report(d) -> str:
             group = g.get("muscle", g.get("trial", ""))
             for name, consts in g["effects"].items():
                 held = [pname for pname, c in consts.items() if c.get("held_at_bound")]
+                width = max([12] + [len(pname) for pname in consts])
                 for pname, c in consts.items():
                     if pname not in held:
-                        lines.append(f"     {group:<10} {name:<22} {pname:<12} {_ci(c)}")
+                        lines.append(f"     {group:<10} {name:<22} {pname:<{width}} {_ci(c)}")
                 if held:
                     lines.append(f"     {group:<10} {name:<22} on its bound by the fit "
                                  "(0: absent): " + ", ".join(held))
