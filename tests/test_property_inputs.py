@@ -98,10 +98,10 @@ def bench_tables(draw, max_muscles: int = 2, rows=(0, 1, 2, 3, 5, 8, 12, 20)):
     which made most tables alike. Its seed is four draws: hypothesis varies an example by
     changing some of its draws, and a seed of one draw repeated (19 seeds in 100 tables)."""
     rng = random.Random(repr([draw(st.integers(0, 2**32 - 1)) for _ in range(4)]))
-    n_muscles = rng.choice([1, 1, 2][: max_muscles + 1])
+    n_muscles = rng.choice([1, 2][:max_muscles])
     rows = [rng.choice(rows) for _ in range(n_muscles)]
-    if n_muscles > 1 and sum(rows) == 0:
-        rows[0] = 5
+    if n_muscles > 1:  # a muscle of no rows is not in the table: two muscles have rows
+        rows = [k or 5 for k in rows]
     names = draw(st.lists(st.sampled_from(MUSCLE_NAMES), min_size=n_muscles,
                           max_size=n_muscles, unique=True))
     muscle = [m for m, k in zip(names, rows) for _ in range(k)]
@@ -320,8 +320,9 @@ def test_the_bench_tables_are_varied(workdir):
     total = sum(seen.values())
     valid = ("valid", "valid, several muscles")
     assert seen["valid"] + seen["valid, several muscles"] >= 0.2 * total, seen
-    # several muscles: the first strategy drew one such file in 100; this one 2 in a full
-    # `make test` run and 5 or more alone (hypothesis' draws are not the same in both)
+    # several muscles: the first strategy drew one such file in 100; a third of the tables
+    # with two muscles drew 1 to 5 (1 in a full `make test` run, 2026-11-28: hypothesis'
+    # draws are not the same there and alone); half of them, each muscle with rows, 8 alone
     assert seen["valid, several muscles"] >= 2, seen
     assert max(v for k, v in seen.items() if k not in valid) <= 0.25 * total, seen
     said = " | ".join(seen)
