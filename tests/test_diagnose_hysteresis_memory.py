@@ -20,7 +20,7 @@ import pytest
 
 import pamid
 from pamid._diagnose._api import diagnose
-from pamid._effects._definitions import SLIP_SHARES, slip_features
+from pamid._effects._definitions import STATIC_EFFECTS
 from pamid._effects._slip import initial_state, play_operator, stop_operator
 from pamid._virtual._isometric import virtual_lab_file
 
@@ -180,7 +180,7 @@ def test_fitted_slip_elements_predict_minor_loops(slip_files):
     """What memory buys: the hysteresis fitted on isometric stairs (every trial a major loop,
     0 to 620 kPa and back) predicts the friction along a path of minor loops it never saw —
     up to 620 kPa, down to 300, up to 500, down to 150, up to 450, down to 250, up to 620,
-    down to 0, in 20 kPa steps — from the same slip elements (:func:`slip_features`). The
+    down to 0, in 20 kPa steps — from the same slip elements (the effect's own features). The
     path's range is the major loop's, so the injector's thresholds (shares of the range) are
     the same physical friction. A jump at each reversal cannot curve inside a minor loop:
     even its best fit to the true force along the path errs more than the prediction."""
@@ -193,15 +193,18 @@ def test_fitted_slip_elements_predict_minor_loops(slip_files):
         for a, b in zip(corners[:-1], corners[1:], strict=False)])]
     p_bar = u / 100.0
     truth = injected.force_N({"moving_input": u, "sequence_axes": 1, "p_bar": p_bar})
-    muscle = types.SimpleNamespace(
-        file=types.SimpleNamespace(step_input="pressure", spec=None),
-        frame=pd.DataFrame({"pressure_kPa": u}), trial=np.zeros(len(u), int),
-        step_noise=None, memo={})
-    s = slip_features(muscle)
+    # The fitted effect on the new path: its own features times its constants, in the
+    # definition's order (the direction is the path's, as the diagnosis derives it).
+    hysteresis = next(e for e in STATIC_EFFECTS if e.name == "hysteresis")
+    file = types.SimpleNamespace(step_input="pressure", spec=None)
+    muscle = types.SimpleNamespace(file=file, frame=pd.DataFrame({"pressure_kPa": u}),
+                                   p_bar=p_bar, trial=np.zeros(len(u), int),
+                                   step_noise=None, memo={})
     d_move = np.sign(np.r_[1.0, np.diff(u)])
-    predicted = -d_move * (c["h0"] + c["h1"] * p_bar)
-    for i, k in enumerate(f"{round(100 * q):02d}" for q in SLIP_SHARES):
-        predicted -= s[:, i] * (c[f"h0_r{k}"] + c[f"h1_r{k}"] * p_bar)
+    features = hysteresis.features(muscle, {"direction": d_move}.__getitem__, None)
+    names = [k.name for k in (*hysteresis.constants, *hysteresis.more(file))]
+    assert len(names) == len(features) == 10  # the jump and four slip elements
+    predicted = sum(c[name] * z for name, z in zip(names, features, strict=True))
     minor = np.arange(len(u)) > 31  # after the first rise to 620 kPa
 
     def rms(a):

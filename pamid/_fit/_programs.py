@@ -18,6 +18,7 @@ the region list costs about a millisecond per 10,000 regions.
 
 from __future__ import annotations
 
+import functools
 import gc
 import threading
 import time
@@ -32,9 +33,11 @@ _last_look = -float("inf")
 _released = 0  # how many times this process has dropped its programs
 
 
+@functools.cache
 def region_limit() -> int | None:
     """The most memory regions one process may map (``vm.max_map_count``); None where the
-    system does not say (not Linux)."""
+    system does not say (not Linux). Read once: a setting of the system, not of the
+    process."""
     try:
         with open("/proc/sys/vm/max_map_count", "rb") as f:
             return int(f.read().strip())

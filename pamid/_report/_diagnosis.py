@@ -36,7 +36,9 @@ def _verdict(r: dict) -> str:
 def _judge_lines(sel: dict) -> list[str]:
     """How the candidates were judged, with the selection's own thresholds and the
     baseline residual's effective sample size (:mod:`pamid._diagnose._select`)."""
-    bic = sel.get("bic_threshold", 10.0)
+    from .._diagnose._select import BIC_THRESHOLD
+
+    bic = sel.get("bic_threshold", BIC_THRESHOLD)
     share = sel.get("cv_share")
     lines = ["2. Candidate effects, each refitted against the baseline; significant = ΔBIC < "
              f"−{bic:g} on the effective sample size n_eff (rows over the residual's "
