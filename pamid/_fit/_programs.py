@@ -12,8 +12,10 @@ the worker's regions grew by about 2,700 a minute).
 :func:`release_if_crowded` drops JAX's caches of compiled programs when the process holds
 more than :data:`CROWDED_SHARE` of its limit. Programs still in use are not affected; those
 needed again are compiled again, or read back from the disk caches when they are on
-(:mod:`._export_cache`). It looks at most once a second (:data:`LOOK_EVERY_S`): reading
-the region list costs about a millisecond per 10,000 regions.
+(:mod:`._export_cache`). It looks at most once a second (:data:`LOOK_EVERY_S`): the
+kernel writes the region list for each look, about 5 ms at 6,000 regions on this project's
+machine (2026-11-28), so at most 0.5 % of a busy second then; a call between looks costs
+about 0.5 µs.
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ def regions() -> int | None:
     """The memory regions this process maps now; None where the system does not say."""
     try:
         with open("/proc/self/maps", "rb") as f:
-            return sum(1 for _ in f)
+            return f.read().count(b"\n")
     except OSError:
         return None
 
