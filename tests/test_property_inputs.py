@@ -148,20 +148,22 @@ def bench_tables(draw, max_muscles: int = 2, rows=(0, 1, 2, 3, 5, 8, 12, 20)):
     event("spoils: " + (", ".join(sorted(set(spoils))) or "none"))
     for spoil in spoils:
         j = rng.choice(required)
-        i = rng.randrange(n) if n else None
+        # A row of this column: an earlier spoil may have shortened it (ragged) or
+        # lengthened it (an empty row), so the row is drawn from its length now.
+        i = rng.randrange(len(columns[j])) if columns[j] else None
         if spoil == "missing_column":
             del header[j], columns[j]
             required = [k - (k > j) for k in required if k != j]
             if not required:
                 break
-        elif spoil in ("non_numeric", "blank_cell", "non_finite", "cell") and n:
+        elif spoil in ("non_numeric", "blank_cell", "non_finite", "cell") and i is not None:
             pool = {"non_numeric": st.sampled_from(["abc", "1.5.5", "--1", "0x10", "½", "😀",
                                                     "TRUE", "2026-11-24", "#N/A", "1e"]),
                     "blank_cell": st.sampled_from(["", " "]),
                     "non_finite": st.sampled_from(["nan", "NaN", "inf", "-inf", "1e400"]),
                     "cell": cells()}[spoil]
             columns[j][i] = draw(pool)
-        elif spoil == "empty_row" and n:
+        elif spoil == "empty_row" and i is not None:
             for col in columns:
                 col.insert(i, "")
         elif spoil == "duplicate":
@@ -173,9 +175,9 @@ def bench_tables(draw, max_muscles: int = 2, rows=(0, 1, 2, 3, 5, 8, 12, 20)):
                                               "Time [ms]", "contraction_permille"]))
         elif spoil == "junk_header":
             header[j] = draw(st.sampled_from(OTHER_NAMES) | st.text(max_size=8))
-        elif spoil == "ragged" and n:
-            columns[j] = columns[j][: n - 1]
-        elif spoil == "out_of_range" and n:
+        elif spoil == "ragged" and i is not None:
+            columns[j] = columns[j][:-1]
+        elif spoil == "out_of_range" and i is not None:
             columns[j][i] = draw(st.sampled_from(["-500", "80", "-1e6", "1e300"]))
         elif spoil == "junk_column":
             header.append(draw(st.sampled_from(OTHER_NAMES)))
