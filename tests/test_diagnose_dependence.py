@@ -20,7 +20,7 @@ import pytest
 
 from pamid._diagnose._api import diagnose
 from pamid._diagnose._residual import autocorrelation_time, effective_sample_size
-from pamid._diagnose._select import SetFit, delta_bic, judge
+from pamid._diagnose._select import SetFit, delta_bic, forward_select, judge
 from pamid._virtual._isometric import virtual_lab_file
 from pamid.report import diagnosis_report
 
@@ -107,6 +107,46 @@ def test_the_judge_refuses_an_effect_below_the_effect_size_floor():
     assert v["decided_by"] == "held_out_share"
     large.cv_sse = 0.9
     assert judge(small, large)["supported"]
+
+
+# -- forward and backward consistent: a fake family of known SSEs ------------------------------
+
+
+def _family(sse: dict[frozenset, float]):
+    """A fake family: each set of effects has a known SSE on 1,000 white rows (and the same
+    held-out error), each effect two constants."""
+    def evaluate(sets):
+        return [SetFit(effects=s, sse=np.array([sse[frozenset(s)]]), n=np.array([1000]),
+                       k=np.array([6 + 2 * len(s)]), cv_sse=sse[frozenset(s)], cv_n=1000,
+                       converged=np.array([True])) for s in sets]
+    return evaluate
+
+
+def test_an_effect_added_after_a_generic_term_is_not_dropped_without_it():
+    """The AARL file under Cullinan's model (experiments/README §10): a generic contraction
+    term first, hysteresis on top of it, then a pressure term; the backward pass judged the
+    hysteresis among the library effects alone — against the baseline, where it had never been
+    supported — and dropped it. Judged in the context it was added in, it stays."""
+    L, G, H = "hysteresis", "covariate:x", "covariate:y"
+    f = frozenset
+    sse = {f(): 1000.0, f({L}): 995.0, f({G}): 800.0, f({H}): 900.0, f({G, L}): 700.0,
+           f({G, H}): 750.0, f({L, H}): 650.0, f({G, L, H}): 600.0}
+    out = forward_select([L, G, H], _family(sse), {L: "direction", G: "x", H: "y"})
+    assert [s["added"] for s in out["steps"]][:3] == [G, L, H]
+    assert out["dropped"] == [] and out["selected"] == [G, L, H]
+
+
+def test_a_library_effect_is_not_dropped_for_a_generic_term_added_after_it():
+    """The rule the consistency keeps: a library effect added first and a generic term that
+    holds it in another form (without it, the generic term alone nearly as good): the
+    library effect stays, and the generic term with it."""
+    L, G = "sensor_offset", "covariate:x"
+    f = frozenset
+    sse = {f(): 1000.0, f({L}): 900.0, f({G}): 810.0, f({L, G}): 800.0}
+    # given the generic term the offset would not be supported: ΔBIC = +1.4
+    assert not judge(*_family(sse)([(G,), (G, L)]))["supported"]
+    out = forward_select([L, G], _family(sse), {L: "pressure", G: "x"})
+    assert out["selected"] == [L, G] and out["dropped"] == []
 
 
 # -- whole diagnoses ---------------------------------------------------------------------------

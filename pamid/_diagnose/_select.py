@@ -36,7 +36,9 @@ effect is added only when no library effect is supported any more, so that it na
 the library cannot model rather than a library effect in another form. A backward pass
 then drops, one at a time, any selected effect that the same judge no longer supports
 given the others: an effect is dropped only on evidence other than that it was added on
-(an effect added later that explains it).
+(an effect added later that explains it). A library effect is judged there without the
+generic terms added after it (they may hold it in another form) but with those added before
+it, so that the backward judge repeats the forward verdict where nothing else changed.
 
 A candidate whose fitted constants land at or past a physical bound (a negative compliance,
 a transient lagging by more than its whole step: :mod:`pamid._effects._definitions`) is
@@ -253,13 +255,12 @@ def forward_select(
     while selected:
         say(f"backward check of {', '.join(selected)}")
         reduced = [tuple(e for e in selected if e != r) for r in selected]
-        # A library effect is judged among the library effects alone: a generic covariate
-        # added after it may absorb it (a smooth function of the contraction holds a sensor
-        # offset's a4·δ·κ), and would then name in another form what the library models.
-        library = tuple(e for e in selected if not _generic(e))
-        judged = [(library, tuple(e for e in library if e != r))
-                  if not _generic(r) and len(library) < len(selected) else (None, red)
-                  for r, red in zip(selected, reduced, strict=True)]
+        # A library effect is judged without the generic covariates added after it: such a
+        # term may absorb it (a smooth function of the contraction holds a sensor offset's
+        # a4·δ·κ) and would then name in another form what the library models. It keeps
+        # those added before it, the context it was added in: with no other change, the
+        # backward judge repeats the forward verdict (nothing is added and then dropped).
+        judged = [_context(selected, i) for i in range(len(selected))]
         wanted = list(dict.fromkeys(
             [*reduced, *(s for pair in judged for s in pair if s is not None)]))
         todo = [s for s in wanted if s]
@@ -296,6 +297,18 @@ def forward_select(
                           "rho1_final": _listed(current.rho1),
                           "tau_final": _listed(current.tau),
                           "n_eff_final": current.n_eff.tolist()}}
+
+
+def _context(selected: tuple[str, ...], i: int) -> tuple[tuple[str, ...] | None,
+                                                          tuple[str, ...]]:
+    """The backward judge's pair for the ``i``-th selected effect: (the set with it, or None
+    for every selected effect; that set without it). Every other effect stays, except the
+    generic covariates added after a library effect (``forward_select``'s backward pass)."""
+    name = selected[i]
+    with_it = selected if _generic(name) else tuple(
+        e for j, e in enumerate(selected) if not (_generic(e) and j > i))
+    without = tuple(e for e in with_it if e != name)
+    return (None if with_it == selected else with_it), without
 
 
 def _listed(values) -> list[float] | None:
