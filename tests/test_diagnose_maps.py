@@ -103,3 +103,16 @@ def test_martens_map_is_a_map(tmp_path):
         d = diagnose(MARTENS)
     assert not d.order_is_time
     assert "time_order" not in d.unexplained
+
+
+def test_a_map_gets_no_time_order_plot(tmp_path, capsys):
+    """`pamid diagnose --out` on a map wrote residual_time_order.png, a residual 'in time
+    order' for rows that have none; it writes the other outputs and says why not that one."""
+    from pamid._cli import main
+
+    out = tmp_path / "diag"
+    assert main(["diagnose", str(_map(tmp_path / "map.csv", True)), "--json",
+                 "--out", str(out)]) == 0
+    written = {p.name for p in out.iterdir() if not p.name.startswith(".")}  # not the manifest
+    assert written == {"diagnosis.json", "report.txt", "residuals_before_after.png"}
+    assert "no residual_time_order.png: the rows are a map" in capsys.readouterr().err

@@ -97,9 +97,14 @@ def cmd_diagnose(args) -> int:
         write_text_atomic(out / "diagnosis.json", json.dumps(out_json, indent=2) + "\n")
         write_text_atomic(out / "report.txt", diagnosis_report(d) + "\n")
         plot_diagnosis_residuals(d, out / "residuals_before_after.png")
-        plot_diagnosis_time_order(d, out / "residual_time_order.png")
-        progress(f"wrote diagnosis.json, report.txt, residuals_before_after.png, "
-                 f"residual_time_order.png to {final_place(out)}/")
+        written = ["diagnosis.json", "report.txt", "residuals_before_after.png"]
+        if d.order_is_time:  # a map sorted by its inputs has no time order to plot
+            plot_diagnosis_time_order(d, out / "residual_time_order.png")
+            written.append("residual_time_order.png")
+        progress(f"wrote {', '.join(written)} to {final_place(out)}/"
+                 + ("" if d.order_is_time else
+                    " (no residual_time_order.png: the rows are a map sorted by its "
+                    "inputs, not a time order)"))
     if args.json:
         print(json.dumps(out_json))
     else:
