@@ -70,6 +70,16 @@ class NonNegative(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
+class Positive(argparse.Action):
+    """The ``action`` of an ``int`` option that must be 1 or more (``--chunk-rows``):
+    anything else is argparse's one-line error (exit 2)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if values < 1:
+            raise argparse.ArgumentError(self, f"must be an integer ≥ 1, got {values}")
+        setattr(namespace, self.dest, values)
+
+
 #: Seeds that :func:`jax.random.key` turns into distinct keys.
 MAX_SEED = 2**32 - 1
 

@@ -33,6 +33,16 @@ def register(subparsers) -> None:
     fit.add_argument("--bootstrap", type=int, default=0, metavar="B",
                      help="also bootstrap whole curves with B replicates per muscle")
     fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the bootstrap and MCMC")
+    from ._common import Positive
+
+    fit.add_argument("--stream", action="store_true",
+                     help="a Parquet file bigger than memory: read and fit it a chunk of "
+                          "whole muscles at a time (each muscle's rows together), keeping "
+                          "only the constants: --out gets constants.parquet (one row per "
+                          "muscle), fit_stream.json and rmse_histogram.png")
+    fit.add_argument("--chunk-rows", type=int, action=Positive, default=1_000_000,
+                     metavar="N", help="--stream: rows per chunk (default 1,000,000; whole "
+                                       "muscles, so a chunk may hold more)")
     from ._common import NonNegative
 
     fit.add_argument("--max-plots", type=int, action=NonNegative, default=6,
@@ -42,9 +52,9 @@ def register(subparsers) -> None:
 
     add_reading_arguments(fit)
     add_mcmc_arguments(fit)
-    fit.set_defaults(func=run, prepare=prepare, outputs=(
+    fit.set_defaults(func=run, prepare=prepare, outputs=(  # the names it writes in --out
         "fit.json", "fit_*.png", "residuals_*.png", "rmse_histogram.png", "mcmc_*.nc",
-        "mcmc_*.nc3", "mcmc_*.png"))  # the names it writes in --out (checked before any work)
+        "mcmc_*.nc3", "mcmc_*.png", "constants.parquet", "fit_stream.json"))
 
 
 def fit_table(result, published=None) -> str:
@@ -156,6 +166,10 @@ def run(args) -> int:
 
         startup = _export_cache.prepare_in_background(then=lambda: prepare(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
+    if args.stream:
+        from .fit_stream import run_stream
+
+        return run_stream(args, startup, intervals)
     if args.bootstrap and "bootstrap" not in intervals:
         intervals += ("bootstrap",)
     warming: list[threading.Thread] = []

@@ -88,7 +88,7 @@ def _check_time_increases(
             whose = f" of {names[codes[i]]}" if described else f" of {group} '{names[codes[i]]}'"
         raise table.error(
             f"time_s {time_raw(i)} s is not later than {time_raw(j)} s "
-            f"on row {j + 1}{whose}; time must increase strictly within a {group}",
+            f"on row {table.row_number(j)}{whose}; time must increase strictly within a {group}",
             column="time_s",
             index=i,
         )

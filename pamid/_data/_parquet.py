@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from .._errors import BenchDataError
+from ._cells import QUANTITY_UNITS
 from ._streams import _read_bytes
 from ._table import _check_duplicates, _Column, _Table
 
@@ -19,13 +21,26 @@ def _read_parquet(path: Path, shown: str, data: bytes | None = None,
     """Read a Parquet file with pyarrow, column by column (from ``data``, its bytes, where a
     stream was read already). ``columns``, the user's mapping, is the loader's to apply."""
     import pyarrow as pa
-    import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
     data = _read_bytes(path, shown, data)  # existence, directory and empty-file checks
     source = pa.py_buffer(data)
+    names = _schema_names(pa.BufferReader(source), shown)
     try:
-        schema = pq.read_schema(pa.BufferReader(source))
+        table = pq.ParquetFile(pa.BufferReader(source)).read()
+    except Exception as exc:
+        raise BenchDataError(shown, f"cannot read the Parquet data ({exc})") from exc
+
+    return _arrow_table(table, names, shown)
+
+
+def _schema_names(source, shown: str) -> list[str]:
+    """The data columns' names of a Parquet file (pandas' index columns left out); errors
+    for a file that is not Parquet, a column without a name and a name given twice."""
+    import pyarrow.parquet as pq
+
+    try:
+        schema = pq.read_schema(source)
     except Exception as exc:  # pyarrow raises several types for a corrupt file
         raise BenchDataError(shown, f"not a table: cannot read it as Parquet ({exc})") from exc
     names = [n for n in schema.names if not n.startswith("__index_level_")]
@@ -33,10 +48,80 @@ def _read_parquet(path: Path, shown: str, data: bytes | None = None,
         if not name.strip():
             raise BenchDataError(shown, f"column {j + 1} has no name")
     _check_duplicates(shown, names)
+    return names
+
+
+def parquet_chunks(path: Path, shown: str, rows: int,
+                   columns: dict[str, str] | None = None) -> Iterator[_Table]:
+    """A Parquet file as tables of whole muscles, in file order, about ``rows`` rows each:
+    read one record batch at a time, so that memory holds one chunk, never the file.
+
+    A chunk ends where a muscle ends (the ``muscle`` column, found by pamid's names and the
+    user's mapping ``columns``): the rows of the last muscle of a batch wait for the next
+    batch, so a muscle of more than ``rows`` rows comes whole in a larger chunk. A last
+    chunk of less than half ``rows`` joins the one before it (a chunk of a few muscles
+    would compile programs of its own shape for them). A file
+    without a muscle column is one muscle, read whole. Each table's ``row_offset`` keeps
+    the file's row numbers in messages. A muscle's rows must be together; that a muscle
+    does not come back in a later chunk is the loader's check
+    (:func:`pamid._data._bench.load_bench_chunks`)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    from ._names import NameProblem, canonical_names
+    from ._streams import _stream_key
+
+    if _stream_key(path, shown) is not None:  # errors for a missing path or a directory
+        raise BenchDataError(shown, "a pipe or stream cannot be read in chunks (--stream): "
+                                    "give a Parquet file on disk")
+    names = _schema_names(path, shown)
     try:
-        table = pq.ParquetFile(pa.BufferReader(source)).read()
-    except Exception as exc:
+        canonical = canonical_names([n.strip() for n in names], QUANTITY_UNITS, columns)
+    except NameProblem as problem:
+        raise BenchDataError(shown, problem.message, column=problem.column) from None
+    muscle = names[canonical.index("muscle")] if "muscle" in canonical else None
+    pending, held, offset = None, None, 0
+    try:
+        if muscle is None:  # one muscle: the whole file
+            pending = pq.ParquetFile(path).read()
+        for batch in () if muscle is None else pq.ParquetFile(path).iter_batches(
+                batch_size=max(1, int(rows))):
+            part = pa.Table.from_batches([batch])
+            pending = part if pending is None else pa.concat_tables([pending, part])
+            if pending.num_rows < rows:
+                continue
+            ids = pending.column(muscle)
+            last = ids[len(ids) - 1]
+            same = np.asarray(pc.fill_null(pc.equal(ids, last), False))
+            cut = len(same) - int(np.argmin(same[::-1])) if not same.all() else 0
+            if cut == 0:  # one muscle so far: it goes on in the next batch
+                continue
+            if held is not None:
+                yield _arrow_table(held, names, shown, offset)
+                offset += held.num_rows
+            held, pending = pending.slice(0, cut), pending.slice(cut)
+    except BenchDataError:
+        raise
+    except Exception as exc:  # a corrupt row group, an unreadable page
         raise BenchDataError(shown, f"cannot read the Parquet data ({exc})") from exc
+    if pending is None:  # no rows at all: the loader says so, as for a whole file
+        pending = pq.read_schema(path).empty_table()
+    if held is not None and pending.num_rows < rows / 2:
+        pending, held = pa.concat_tables([held, pending]), None
+    if held is not None:
+        yield _arrow_table(held, names, shown, offset)
+        offset += held.num_rows
+    if pending.num_rows or offset == 0:
+        yield _arrow_table(pending, names, shown, offset)
+
+
+def _arrow_table(table, names: list[str], shown: str, row_offset: int = 0) -> _Table:
+    """A pyarrow table as pamid's :class:`_Table`, column by column (numbers as float64
+    with their nulls, anything else as text); ``row_offset``: the file's data rows before
+    its first (a chunk of the file)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
 
     columns = {}
     for j, name in enumerate(table.column_names):
@@ -56,7 +141,8 @@ def _read_parquet(path: Path, shown: str, data: bytes | None = None,
         else:
             cells = ["" if v is None else str(v).strip() for v in chunked.to_pylist()]
             columns[name.strip()] = _Column(name.strip(), text=cells, original=chunked.to_pandas())
-    return _Table(shown, [n.strip() for n in names], columns, table.num_rows, None, False)
+    return _Table(shown, [n.strip() for n in names], columns, table.num_rows, None, False,
+                  row_offset=row_offset)
 
 
 def parquet_names(path: Path, shown: str, data: bytes | None = None) -> list[str]:

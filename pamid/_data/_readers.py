@@ -17,12 +17,12 @@ error that says so.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from ._csv import CSV_SUFFIXES, _read_csv, csv_names, read_csv_fast
-from ._parquet import PARQUET_SUFFIXES, _read_parquet, parquet_names
+from ._parquet import PARQUET_SUFFIXES, _read_parquet, parquet_chunks, parquet_names
 from ._spreadsheet import (
     ALL_SHEETS,
     SPREADSHEET_SIGNATURES,
@@ -62,6 +62,10 @@ class Reader:
         parts: ``parts(path, shown, data=None) -> list[str]``, for a format whose file
             holds several tables (a workbook's sheets): their names, which ``read`` takes as
             ``sheet=`` (``load_bench(sheet="all")`` reads each as a muscle).
+        chunks: ``chunks(path, shown, rows, columns=None) -> Iterator[_Table]``, for a
+            format that can be read a part at a time: tables of whole muscles of about
+            ``rows`` rows, in file order (:func:`~pamid._data._bench.load_bench_chunks`,
+            ``pamid fit --stream``).
     """
 
     name: str
@@ -72,6 +76,7 @@ class Reader:
     options: tuple[str, ...] = ()
     fast: Callable[..., _Table | None] | None = None
     parts: Callable[..., list[str]] | None = None
+    chunks: Callable[..., Iterator[_Table]] | None = None
 
 
 #: CSV: also every file whose extension no other reader claims.
@@ -80,7 +85,8 @@ CSV = Reader("CSV files", CSV_SUFFIXES, (), _read_csv, csv_names, ("sep", "decim
 #: The formats, in the order messages list them.
 FORMATS: tuple[Reader, ...] = (
     CSV,
-    Reader("Parquet files", PARQUET_SUFFIXES, (b"PAR1",), _read_parquet, parquet_names),
+    Reader("Parquet files", PARQUET_SUFFIXES, (b"PAR1",), _read_parquet, parquet_names,
+           chunks=parquet_chunks),
     Reader("spreadsheets", SPREADSHEET_SUFFIXES, SPREADSHEET_SIGNATURES, read_spreadsheet,
            spreadsheet_names, ("sheet", "header_row", "decimal"), parts=sheet_names),
 )

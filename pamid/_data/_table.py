@@ -85,6 +85,13 @@ class _Table:
     letters: dict[str, str] | None = None  # ... and each column's letter(s) there
     # Spreadsheets: columns of one value written above the header, and its cell ("B2")
     fixed_cells: dict[str, str] | None = None
+    #: Data rows of the file before this table's first (a part of a file read in chunks,
+    #: :func:`pamid._data._parquet.parquet_chunks`): row numbers in messages are the file's.
+    row_offset: int = 0
+
+    def row_number(self, index: int) -> int:
+        """The 1-based data row of the file that holds this table's row ``index``."""
+        return int(index) + 1 + self.row_offset
 
     def error(self, message: str, *, column: str | None = None, index: int | None = None):
         """A BenchDataError for data row ``index`` (0-based) of ``column``."""
@@ -95,7 +102,7 @@ class _Table:
                 column=self.file_names.get(column, column), sheet=self.sheet, cell=fixed)
         row = line = cell = None
         if index is not None:
-            row = int(index) + 1
+            row = self.row_number(index)
             if self.lines is not None:
                 line = self.lines[int(index)]
             elif self.first_line is not None:

@@ -1,0 +1,250 @@
+"""``pamid fit DATA --stream``: a bench file bigger than memory, fitted a chunk of whole
+muscles at a time.
+
+The file is read a chunk of about ``--chunk-rows`` rows at a time
+(:func:`pamid._data._bench.load_bench_chunks`: whole muscles, each chunk checked as a whole
+file is), each chunk is fitted by :func:`pamid.fit_least_squares` (the same solver, bounds
+and intervals as ``pamid fit``), and only its constants are kept: memory holds one chunk
+and the table of results, never the file. The chunks after the first have the first's
+shape class (:func:`pamid._fit._batch.padded_rows`, ``padded_lanes``), so they run the
+programs it compiled.
+
+Writes ``constants.parquet`` to ``--out`` (one row per muscle, in file order: its rows,
+status, steps, RMSE, R, and per constant its value, standard error and the 95 % interval
+the muscle's residual supports, with Wald's and the profile's where they differ) as it goes,
+atomically, and ``fit_stream.json`` (the summary, which ``--json`` also prints) and
+``rmse_histogram.png``. Exit 0 when every muscle converged, 1 when one did not, 2 for bad
+input.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import resource
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+#: Not-converged muscles named in the summary (all of them are in constants.parquet).
+NAMED = 20
+
+
+def run_stream(args, startup, intervals: tuple[str, ...]) -> int:
+    """The ``--stream`` branch of ``pamid fit`` (module text)."""
+    from .._data._bench import load_bench_chunks
+    from .._io import final_place, write_atomic, write_text_atomic
+
+    if args.method != "ls":
+        raise ValueError("--stream fits by least squares (--method ls); sample a posterior "
+                         "of a few muscles with --method mcmc on a file that fits in memory")
+    if not args.out:
+        raise ValueError("--stream writes one row per muscle to --out FOLDER/constants.parquet"
+                         " (a file too big for memory has too many muscles for the screen): "
+                         "give --out")
+    if args.bootstrap:
+        raise ValueError("--stream computes wald, profile, cluster and hac intervals, not the "
+                         "bootstrap (B refits of every muscle); drop --bootstrap")
+    if "bootstrap" in intervals:
+        raise ValueError("--stream computes wald, profile, cluster and hac intervals, not the "
+                         "bootstrap; leave it out of --intervals")
+    from ._reading import reading_options
+
+    reading = reading_options(args)
+    for option in ("sep", "decimal", "sheet", "header_row"):
+        if reading.pop(option) is not None:
+            raise ValueError(f"--{option.replace('_', '-')} does not apply with --stream, "
+                             "which reads Parquet files")
+    t0 = time.perf_counter()
+    chunks = load_bench_chunks(args.data, args.chunk_rows, **reading)
+    spec, bounds = startup.result()  # a bad model or bounds: told before any data are read
+    out = Path(args.out)
+    summary = _Summary(args, intervals)
+
+    def write(tmp: str) -> None:
+        _stream(chunks, tmp, args, spec, bounds, intervals, summary, t0)
+
+    write_atomic(out / "constants.parquet", write)
+    for (category, _), (text, n) in summary.warned.items():
+        if n > 1:
+            text = text.removeprefix(f"{args.data}: ")
+            words = text if len(text) <= 60 else text[:60] + "…"
+            warnings.warn(f"{args.data}: the same warning in {n - 1:,} more chunk(s) as in the "
+                          f"first ({words})", category, stacklevel=2)
+    payload = summary.payload(time.perf_counter() - t0)
+    from .._report._plot import plot_rmse_histogram
+
+    plot_rmse_histogram(np.concatenate(summary.rmse) if summary.rmse else np.zeros(0),
+                        out / "rmse_histogram.png",
+                        f"Fit RMSE across {payload['muscles']:,} muscles of {args.data}")
+    write_text_atomic(out / "fit_stream.json", json.dumps(payload, indent=2) + "\n")
+    _say(f"wrote constants.parquet, fit_stream.json, rmse_histogram.png to "
+         f"{final_place(out)}/")
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(_text(payload))
+    return 0 if payload["not_converged"] == 0 else 1
+
+
+def _say(message: str) -> None:
+    print(f"[pamid] {message}", file=sys.stderr, flush=True)
+
+
+class _Summary:
+    """What the chunks add up to: counts, statuses, RMSEs and the warnings seen."""
+
+    def __init__(self, args, intervals):
+        self.source, self.model, self.solver = str(args.data), args.model, args.solver
+        self.intervals, self.chunk_rows = intervals, args.chunk_rows
+        self.muscles = self.rows = self.chunks = self.censored = 0
+        self.statuses: dict[str, int] = {}
+        self.not_converged: list[dict] = []
+        self.rmse: list[np.ndarray] = []
+        self.units: dict[str, str] = {}
+        self.names: tuple[str, ...] = ()
+        self.fit_s = self.read_s = 0.0
+        self.warned: dict[tuple, tuple[str, int]] = {}  # -> (first text, chunks)
+
+    def add(self, bench, result) -> None:
+        self.chunks += 1
+        self.muscles += len(result.muscles)
+        self.rows += len(bench.frame)
+        self.censored += bench.n_censored
+        self.names, self.units = result.param_names, dict(result.param_units)
+        for status in result.status:
+            self.statuses[status] = self.statuses.get(status, 0) + 1
+        for i in np.flatnonzero(~np.asarray(result.converged)):
+            if len(self.not_converged) < NAMED:
+                self.not_converged.append({"muscle": result.muscles[i],
+                                           "status": result.status[i],
+                                           "why": result.message(i)})
+        self.rmse.append(np.asarray(result.rmse_N, float))
+
+    def payload(self, seconds: float) -> dict:
+        rmse = np.concatenate(self.rmse) if self.rmse else np.zeros(0)
+        bad = sum(n for s, n in self.statuses.items() if s not in ("converged", "at_bound"))
+        finite = rmse[np.isfinite(rmse)]
+        return {
+            "source": self.source, "model": self.model, "solver": self.solver,
+            "intervals": list(self.intervals), "muscles": self.muscles, "rows": self.rows,
+            "chunks": self.chunks, "chunk_rows": self.chunk_rows,
+            "n_censored_dropped": self.censored, "status": self.statuses,
+            "not_converged": bad, "not_converged_first": self.not_converged,
+            "rmse_N": ({"median": float(np.median(finite)),
+                        "p95": float(np.percentile(finite, 95)),
+                        "max": float(finite.max())} if finite.size else None),
+            "constants": list(self.names), "units": self.units,
+            "constants_file": "constants.parquet",
+            "seconds": round(seconds, 3), "read_s": round(self.read_s, 3),
+            "fit_s": round(self.fit_s, 3),
+            "peak_rss_MB": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        }
+
+
+def _stream(chunks, path: str, args, spec, bounds, intervals, summary: _Summary, t0) -> None:
+    """Fit every chunk and append its rows to the Parquet file at ``path``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from .._fit._api import fit_least_squares
+
+    writer = None
+    try:
+        while True:
+            t_read = time.perf_counter()
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                bench = next(chunks, None)
+            summary.read_s += time.perf_counter() - t_read
+            _pass_on(caught, summary)
+            if bench is None:
+                break
+            t_fit = time.perf_counter()
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                result = fit_least_squares(bench, args.model, solver=args.solver,
+                                           intervals=intervals, bounds=bounds)
+            _pass_on(caught, summary)
+            summary.fit_s += time.perf_counter() - t_fit
+            table = pa.Table.from_pandas(_rows(bench, result), preserve_index=False)
+            if writer is None:
+                meta = {b"pamid": json.dumps({
+                    "model": args.model, "units": dict(result.param_units),
+                    "intervals": list(intervals)}).encode()}
+                writer = pq.ParquetWriter(path, table.schema.with_metadata(meta))
+            writer.write_table(table.cast(writer.schema))
+            summary.add(bench, result)
+            first, last = bench.frame["source_row"].iloc[[0, -1]]
+            _say(f"chunk {summary.chunks}: {len(result.muscles):,} muscles "
+                 f"(rows {first:,}–{last:,}), {summary.muscles:,} muscles so far, "
+                 f"{time.perf_counter() - t0:.1f} s")
+            del bench, result, table
+    finally:
+        if writer is not None:
+            writer.close()
+    if writer is None:  # no muscle at all: the loader has said why
+        raise ValueError(f"{args.data}: no muscle to fit")
+
+
+def _pass_on(caught, summary: _Summary) -> None:
+    """Show a chunk's warnings once: the same warning of a later chunk is counted, and the
+    count shown at the end of the run."""
+    for w in caught:
+        text = str(w.message)
+        key = (w.category, re.sub(r"\d[\d,.]*", "#", text))  # the same words, other counts
+        if key not in summary.warned:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            summary.warned[key] = (text, 0)
+        first, n = summary.warned[key]
+        summary.warned[key] = (first, n + 1)
+
+
+def _rows(bench, result):
+    """One row per muscle of a chunk (module text)."""
+    import pandas as pd
+
+    shown_ci, _ = result.shown_intervals()
+    n = len(result.muscles)
+    counts = bench.frame.groupby("muscle", sort=False).size()
+    data = {
+        "muscle": list(result.muscles),
+        "n_rows": counts.reindex(list(result.muscles)).to_numpy(np.int64),
+        "status": list(result.status),
+        "converged": np.asarray(result.converged, bool),
+        "n_steps": np.asarray(result.n_steps, np.int64),
+        "rmse_N": np.asarray(result.rmse_N, float),
+        "r": np.asarray(result.r, float),
+        "interval": [result.shown_of(i) for i in range(n)],
+    }
+    for j, name in enumerate(result.param_names):
+        data[name] = result.theta[:, j]
+        data[f"{name}_se"] = result.se[:, j]
+        data[f"{name}_low"] = shown_ci[:, j, 0]
+        data[f"{name}_high"] = shown_ci[:, j, 1]
+        data[f"{name}_wald_low"] = result.ci95[:, j, 0]
+        data[f"{name}_wald_high"] = result.ci95[:, j, 1]
+        if result.ci95_profile is not None:
+            data[f"{name}_profile_low"] = result.ci95_profile[:, j, 0]
+            data[f"{name}_profile_high"] = result.ci95_profile[:, j, 1]
+    return pd.DataFrame(data)
+
+
+def _text(payload: dict) -> str:
+    lines = [f"{payload['source']}: {payload['muscles']:,} muscles, {payload['rows']:,} rows "
+             f"in {payload['chunks']} chunks, {payload['seconds']:.1f} s "
+             f"(reading {payload['read_s']:.1f} s, fitting {payload['fit_s']:.1f} s), "
+             f"peak memory {payload['peak_rss_MB']:,.0f} MB",
+             "status: " + ", ".join(f"{k} {v:,}" for k, v in payload["status"].items())]
+    if payload["rmse_N"]:
+        r = payload["rmse_N"]
+        lines.append(f"RMSE [N]: median {r['median']:.4g}, 95th percentile {r['p95']:.4g}, "
+                     f"max {r['max']:.4g}")
+    for bad in payload["not_converged_first"]:
+        lines.append(f"  NOT CONVERGED {bad['muscle']}: {bad['status']}"
+                     + (f" ({bad['why']})" if bad["why"] else ""))
+    lines.append("constants (one row per muscle): constants.parquet in --out")
+    return "\n".join(lines)

@@ -1,0 +1,128 @@
+"""``pamid fit --stream``: a Parquet file read and fitted a chunk of whole muscles at a time
+(issue 29, item 5). Its constants are those of the whole file fitted at once; its checks
+and messages are those of ``load_bench``, with the file's row numbers."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pandas as pd
+import pytest
+
+import pamid
+from pamid._cli import main
+from pamid._data._bench import load_bench_chunks
+from pamid._errors import BenchDataError
+
+MUSCLES = 24
+
+
+@pytest.fixture(scope="module")
+def bench_frame():
+    """24 Sárosi muscles (Table 3-1 × (1 + 3 % noise)), 180 rows each, 1 N noise."""
+    z = np.asarray(jax.random.normal(jax.random.key(5), (MUSCLES, 6)))
+    theta = np.asarray(pamid.sarosi.table_3_1().to_vector()) * (1.0 + 0.03 * z)
+    return pamid.simulate_sarosi_bench(
+        jax.random.key(6), pamid.Sarosi.from_vector(theta),
+        pamid.SarosiProtocol(min_force_N=10.0, pressures_kPa=(200.0, 400.0, 600.0)),
+        muscle_ids=[f"M{i:02d}" for i in range(MUSCLES)])
+
+
+def _parquet(tmp_path, frame, name="bench.parquet", row_group=1000):
+    path = tmp_path / name
+    frame.to_parquet(path, index=False, row_group_size=row_group)
+    return path
+
+
+def test_chunks_are_whole_muscles_with_the_files_row_numbers(tmp_path, bench_frame):
+    path = _parquet(tmp_path, bench_frame)
+    chunks = list(load_bench_chunks(path, 1000))
+    assert len(chunks) > 3
+    muscles = [m for c in chunks for m in c.muscles]
+    assert muscles == list(pd.unique(bench_frame["muscle"]))  # each once, in file order
+    rows = np.concatenate([c.frame["source_row"].to_numpy() for c in chunks])
+    assert np.array_equal(rows, np.arange(1, len(bench_frame) + 1))
+    # a last chunk of less than half the size joins the one before it
+    assert len(chunks[-1].frame) >= 500
+
+
+def test_stream_gives_the_constants_of_the_whole_file(tmp_path, bench_frame, capsys):
+    path = _parquet(tmp_path, bench_frame)
+    out = tmp_path / "out"
+    code = main(["fit", str(path), "--stream", "--chunk-rows", "1500", "--intervals",
+                 "wald,profile", "--json", "--out", str(out)])
+    summary = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert summary["muscles"] == MUSCLES and summary["rows"] == len(bench_frame)
+    assert summary["chunks"] >= 3 and summary["not_converged"] == 0
+    assert summary["units"]["a1"] and summary["constants"] == ["a1", "a2", "a3", "a4", "a5",
+                                                               "a6"]
+    table = pd.read_parquet(out / "constants.parquet")
+    assert json.loads((out / "fit_stream.json").read_text())["muscles"] == MUSCLES
+    assert (out / "rmse_histogram.png").stat().st_size > 0
+
+    whole = pamid.fit_least_squares(pamid.load_bench(path), "sarosi",
+                                    intervals=("wald", "profile"))
+    assert list(table["muscle"]) == list(whole.muscles)
+    for j, name in enumerate(whole.param_names):
+        np.testing.assert_allclose(table[name], whole.theta[:, j], rtol=1e-8)
+        np.testing.assert_allclose(table[f"{name}_wald_low"], whole.ci95[:, j, 0], rtol=1e-7)
+        np.testing.assert_allclose(table[f"{name}_profile_high"], whole.ci95_profile[:, j, 1],
+                                   rtol=1e-6)
+    np.testing.assert_allclose(table["rmse_N"], whole.rmse_N, rtol=1e-8)
+    assert list(table["status"]) == list(whole.status)
+    assert (table["n_rows"] == whole.n).all()
+
+
+def test_a_bad_cell_is_named_by_its_row_in_the_file(tmp_path, bench_frame):
+    frame = bench_frame.copy()
+    frame.loc[3000, "force_N"] = np.nan  # in a later chunk
+    path = _parquet(tmp_path, frame)
+    with pytest.raises(BenchDataError) as whole:
+        pamid.load_bench(path)
+    with pytest.raises(BenchDataError) as chunked:
+        list(load_bench_chunks(path, 1000))
+    assert str(chunked.value) == str(whole.value)
+    assert "row 3001" in str(chunked.value)
+
+
+def test_a_muscle_that_comes_back_is_refused_with_its_row(tmp_path, bench_frame):
+    first = bench_frame[bench_frame["muscle"] == "M00"]
+    again = pd.concat([bench_frame, first.assign(time_s=first["time_s"] + 1e4)])
+    path = _parquet(tmp_path, again)
+    with pytest.raises(BenchDataError, match=rf"row {len(bench_frame) + 1}.*comes back"):
+        list(load_bench_chunks(path, 1000))
+
+
+def test_what_stream_refuses(tmp_path, bench_frame, capsys):
+    csv = tmp_path / "bench.csv"
+    bench_frame.to_csv(csv, index=False)
+    out = str(tmp_path / "out")
+    assert main(["fit", str(csv), "--stream", "--out", out]) == 2
+    assert "only Parquet files can be read a part at a time" in capsys.readouterr().err
+    path = _parquet(tmp_path, bench_frame)
+    assert main(["fit", str(path), "--stream"]) == 2
+    assert "give --out" in capsys.readouterr().err
+    assert main(["fit", str(path), "--stream", "--bootstrap", "10", "--out", out]) == 2
+    assert "drop --bootstrap" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["fit", str(path), "--stream", "--chunk-rows", "0", "--out", out])
+    assert "must be an integer ≥ 1" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_warning_of_every_chunk_is_shown_once_and_counted(tmp_path, bench_frame, capsys):
+    frame = bench_frame.copy()
+    frame.loc[frame.index % 400 == 7, "force_N"] = 0.0  # censored rows in every chunk
+    path = _parquet(tmp_path, frame)
+    code = main(["fit", str(path), "--stream", "--chunk-rows", "1500", "--intervals", "wald",
+                 "--json", "--out", str(tmp_path / "out")])
+    assert code == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert summary["n_censored_dropped"] == int((frame["force_N"] == 0).sum())
+    # the first chunk's warning, then one line that counts the others
+    assert captured.err.count("censored rows") == 2, captured.err
+    assert f"the same warning in {summary['chunks'] - 1} more chunk(s)" in captured.err
