@@ -76,9 +76,11 @@ def test_stream_gives_the_constants_of_the_whole_file(tmp_path, bench_frame, cap
     assert (table["n_rows"] == whole.n).all()
 
 
-def test_a_bad_cell_is_named_by_its_row_in_the_file(tmp_path, bench_frame):
+@pytest.mark.parametrize("column, value", [("force_N", np.nan), ("muscle", None),
+                                           ("muscle", "  ")])
+def test_a_bad_cell_is_named_by_its_row_in_the_file(tmp_path, bench_frame, column, value):
     frame = bench_frame.copy()
-    frame.loc[3000, "force_N"] = np.nan  # in a later chunk
+    frame.loc[3000, column] = value  # in a later chunk
     path = _parquet(tmp_path, frame)
     with pytest.raises(BenchDataError) as whole:
         pamid.load_bench(path)
@@ -86,6 +88,15 @@ def test_a_bad_cell_is_named_by_its_row_in_the_file(tmp_path, bench_frame):
         list(load_bench_chunks(path, 1000))
     assert str(chunked.value) == str(whole.value)
     assert "row 3001" in str(chunked.value)
+
+
+def test_labels_read_as_the_whole_file_reads_them(tmp_path, bench_frame):
+    """Muscle ids with blanks around them are the ids without (as load_bench reads them)."""
+    frame = bench_frame.assign(muscle=" " + bench_frame["muscle"] + " ")
+    path = _parquet(tmp_path, frame)
+    chunks = list(load_bench_chunks(path, 1000))
+    assert [m for c in chunks for m in c.muscles] == list(pamid.load_bench(path).muscles)
+    assert chunks[0].muscles[0] == "M00"
 
 
 def test_a_muscle_that_comes_back_is_refused_with_its_row(tmp_path, bench_frame):

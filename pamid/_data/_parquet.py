@@ -81,6 +81,7 @@ def parquet_chunks(path: Path, shown: str, rows: int,
     except NameProblem as problem:
         raise BenchDataError(shown, problem.message, column=problem.column) from None
     muscle = names[canonical.index("muscle")] if "muscle" in canonical else None
+    labels = tuple(names[canonical.index(c)] for c in ("muscle", "trial") if c in canonical)
     pending, held, offset = None, None, 0
     try:
         if muscle is None:  # one muscle: the whole file
@@ -98,7 +99,7 @@ def parquet_chunks(path: Path, shown: str, rows: int,
             if cut == 0:  # one muscle so far: it goes on in the next batch
                 continue
             if held is not None:
-                yield _arrow_table(held, names, shown, offset)
+                yield _arrow_table(held, names, shown, offset, labels)
                 offset += held.num_rows
             held, pending = pending.slice(0, cut), pending.slice(cut)
     except BenchDataError:
@@ -110,18 +111,23 @@ def parquet_chunks(path: Path, shown: str, rows: int,
     if held is not None and pending.num_rows < rows / 2:
         pending, held = pa.concat_tables([held, pending]), None
     if held is not None:
-        yield _arrow_table(held, names, shown, offset)
+        yield _arrow_table(held, names, shown, offset, labels)
         offset += held.num_rows
     if pending.num_rows or offset == 0:
-        yield _arrow_table(pending, names, shown, offset)
+        yield _arrow_table(pending, names, shown, offset, labels)
 
 
-def _arrow_table(table, names: list[str], shown: str, row_offset: int = 0) -> _Table:
+def _arrow_table(table, names: list[str], shown: str, row_offset: int = 0,
+                 labels: tuple[str, ...] = ()) -> _Table:
     """A pyarrow table as pamid's :class:`_Table`, column by column (numbers as float64
     with their nulls, anything else as text); ``row_offset``: the file's data rows before
-    its first (a chunk of the file)."""
+    its first (a chunk of the file). ``labels``: the file's names of its label columns
+    (muscle, trial): one of strings is read as its distinct stripped cells and a code per
+    row, as the fast CSV reader reads labels, not as a Python string per row."""
     import pyarrow as pa
     import pyarrow.compute as pc
+
+    from ._csv import _factorize_text
 
     columns = {}
     for j, name in enumerate(table.column_names):
@@ -131,7 +137,10 @@ def _arrow_table(table, names: list[str], shown: str, row_offset: int = 0) -> _T
         kind = chunked.type
         numeric = pa.types.is_integer(kind) or pa.types.is_floating(kind)
         numeric = numeric or pa.types.is_decimal(kind)
-        if numeric:
+        if name in labels and (pa.types.is_string(kind) or pa.types.is_large_string(kind)):
+            codes, uniques = _factorize_text(pc.fill_null(chunked, ""))
+            columns[name.strip()] = _Column(name.strip(), codes=codes, uniques=uniques)
+        elif numeric:
             null = np.asarray(chunked.is_null().to_numpy(zero_copy_only=False), dtype=bool)
             floats = pc.fill_null(pc.cast(chunked, pa.float64()), float("nan"))
             values = np.asarray(floats.to_numpy(), dtype=np.float64)
