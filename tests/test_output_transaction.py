@@ -360,3 +360,20 @@ def test_no_out_means_no_folder(tmp_path):
         with output_folder(out, command="x") as staging:
             assert staging is None
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_late_redelivery_never_reaches_the_next_command():
+    """In a full test run on a loaded machine the SIGINT that the Ctrl-C test above had
+    swallowed was sent again after its command had ended, when the next test's command had
+    begun: that one ended "interrupted" (exit 130). A redelivery belongs to its command."""
+    previous = failure.catch_signals()
+    first = failure._RUN[0]
+    failure.restore_signals(previous)
+    previous = failure.catch_signals()  # the next command
+    try:
+        failure._redeliver(signal.SIGINT, first)  # the first command's timer, late
+        for _ in range(10_000):  # a handler would run between these bytecodes
+            pass
+    finally:
+        failure.restore_signals(previous)
+    assert failure._RECEIVED == []

@@ -38,6 +38,10 @@ _ACTIVE = False
 #: signal is sent to the main thread again.
 REDELIVER_S = 0.02
 _LOCK = threading.Lock()
+#: The number of the command whose handlers are in place: a redelivery timer that fires
+#: late (a loaded machine; seen in a full test run, where it ended the next test's command
+#: with "interrupted") acts only on the command it was started in.
+_RUN = [0]
 _PREVIOUS_HOOK: list = []
 #: Whether a signal's exception is on its way (raised and not swallowed since): a second
 #: signal (a redelivery, another kill) then does not interrupt the clean-up it runs.
@@ -67,16 +71,16 @@ def _on_unraisable(unraisable) -> None:
     if _ACTIVE and _RECEIVED and isinstance(exc, (Terminated, KeyboardInterrupt)):
         _RAISED = False
         signum = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
-        timer = threading.Timer(REDELIVER_S, _redeliver, (signum,))
+        timer = threading.Timer(REDELIVER_S, _redeliver, (signum, _RUN[0]))
         timer.daemon = True
         timer.start()
         return
     (_PREVIOUS_HOOK[-1] if _PREVIOUS_HOOK else sys.__unraisablehook__)(unraisable)
 
 
-def _redeliver(signum) -> None:
-    with _LOCK:
-        if _ACTIVE:
+def _redeliver(signum, run: int) -> None:
+    with _LOCK:  # to the command whose finalizer swallowed it, never a later one
+        if _ACTIVE and _RUN[0] == run:
             signal.pthread_kill(threading.main_thread().ident, signum)
 
 
@@ -90,6 +94,7 @@ def catch_signals():
         return None
     _RECEIVED.clear()
     _RAISED = False
+    _RUN[0] += 1
     _PREVIOUS_HOOK.append(sys.unraisablehook)
     sys.unraisablehook = _on_unraisable
     _ACTIVE = True
