@@ -181,13 +181,57 @@ def _stream(chunks, path: str, args, spec, bounds, intervals, summary: _Summary,
             first, last = bench.frame["source_row"].iloc[[0, -1]]
             _say(f"chunk {summary.chunks}: {len(result.muscles):,} muscles "
                  f"(rows {first:,}–{last:,}), {summary.muscles:,} muscles so far, "
-                 f"{time.perf_counter() - t0:.1f} s")
+                 f"{time.perf_counter() - t0:.1f} s{_memory()}")
             del bench, result, table
+            _give_back_freed_memory()
     finally:
         if writer is not None:
             writer.close()
     if writer is None:  # no muscle at all: the loader has said why
         raise ValueError(f"{args.data}: no muscle to fit")
+
+
+def _give_back_freed_memory() -> None:
+    """Return freed memory to the system once the process has grown by
+    :data:`TRIM_GROWTH_BYTES` since it last did (glibc's ``malloc_trim``; elsewhere nothing).
+    glibc keeps the freed blocks of the chunks' arrays, whose sizes differ by a few rows
+    from chunk to chunk: 1,000,000 muscles grew the process from 1.0 to 2.5 GB without it.
+    A trim after every chunk held 1.4 GB but cost 37 % more time (every chunk's arrays
+    faulted in anew); one per 512 MB of growth bounds it at no visible cost."""
+    global _TRIM, _TRIMMED_AT
+    now = _resident_bytes()
+    if now is None or now < _TRIMMED_AT + TRIM_GROWTH_BYTES:
+        return
+    if _TRIM is None:
+        import ctypes
+
+        try:
+            _TRIM = ctypes.CDLL(None).malloc_trim
+        except (OSError, AttributeError):
+            _TRIM = False
+    if _TRIM:
+        _TRIM(0)
+    _TRIMMED_AT = _resident_bytes() or now
+
+
+#: Growth of the resident memory after which :func:`_give_back_freed_memory` trims.
+TRIM_GROWTH_BYTES = 512 * 2**20
+_TRIM = None
+_TRIMMED_AT = 0
+
+
+def _resident_bytes() -> int | None:
+    """The process's resident memory, where /proc tells it."""
+    try:
+        return int(Path("/proc/self/statm").read_text().split()[1]) * resource.getpagesize()
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _memory() -> str:
+    """", memory 1.2 GB": the process's resident memory now, where /proc tells it."""
+    now = _resident_bytes()
+    return "" if now is None else f", memory {now / 1e9:.2f} GB"
 
 
 def _pass_on(caught, summary: _Summary) -> None:
