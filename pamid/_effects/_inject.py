@@ -37,6 +37,7 @@ import dataclasses
 import numpy as np
 
 __all__ = [
+    "Injected",
     "InjectedCompliance",
     "InjectedCovariate",
     "InjectedDrift",
@@ -50,6 +51,20 @@ __all__ = [
 _P_REF_BAR = 3.0  # the pressure at which every form of the hysteresis has the same size
 
 
+class Injected:
+    """What every effect of this module is: ``force_N(ctx)``, the force it adds (N), and
+    ``columns(ctx)``, the columns it logs as a real logger would (none unless it says).
+    An effect of one's own subclasses it (a frozen dataclass, as these are)."""
+
+    def columns(self, ctx) -> dict[str, np.ndarray]:
+        """The columns the effect adds to the file, by name (broadcast to the context)."""
+        return {}
+
+    def force_N(self, ctx):
+        """The force the effect adds to the reading, in N."""
+        raise NotImplementedError(f"{type(self).__name__} adds no force of its own")
+
+
 def apply_effects(effects, ctx: dict, shape: tuple[int, ...]):
     """Run ``effects`` (all but :class:`InjectedCompliance`) on the context ``ctx``.
 
@@ -59,11 +74,14 @@ def apply_effects(effects, ctx: dict, shape: tuple[int, ...]):
     added = np.zeros(shape)
     columns: dict[str, np.ndarray] = {}
     for effect in effects:
-        if hasattr(effect, "columns"):
-            for name, values in effect.columns(ctx).items():
-                values = np.broadcast_to(values, shape)
-                ctx[name] = values
-                columns[name] = values
+        if not isinstance(effect, Injected):
+            raise TypeError(f"{effect!r} is not an injected effect: subclass "
+                            "pamid._effects._inject.Injected (force_N, and columns if it "
+                            "logs any)")
+        for name, values in effect.columns(ctx).items():
+            values = np.broadcast_to(values, shape)
+            ctx[name] = values
+            columns[name] = values
         added = added + effect.force_N(ctx)
     return added, columns
 
@@ -74,7 +92,7 @@ def _check_form(form: str, forms: tuple[str, ...], what: str) -> None:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedHysteresis:
+class InjectedHysteresis(Injected):
     """Direction-dependent force: the extending branch above the contracting one.
 
     Sárosi's upper (F_f) and lower (F_a) curves, eq. 2.3–2.4: the force read while the muscle
@@ -99,7 +117,7 @@ class InjectedHysteresis:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedMaxwellSlip:
+class InjectedMaxwellSlip(Injected):
     """Friction with memory: Maxwell-slip elements on the moving input, the force read while
     the input rises below the static curve and above it while it falls, curving after every
     reversal and closing minor loops (:mod:`pamid._effects._slip`).
@@ -145,7 +163,7 @@ class InjectedMaxwellSlip:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedTemperature:
+class InjectedTemperature(Injected):
     """Force changing with the muscle's temperature, and the thermometer column that shows it.
 
     The bladder softens as it warms, so the force at a given pressure and contraction changes
@@ -191,7 +209,7 @@ def _thermometer(ctx, range_C, ramp_K, resolution_C):
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedRelativeTemperature:
+class InjectedRelativeTemperature(Injected):
     """The force scaled by the muscle's temperature, and the thermometer column that shows it.
 
     The bladder's rubber changes its modulus with temperature (entropy elasticity: the shear
@@ -227,7 +245,7 @@ class InjectedRelativeTemperature:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedDrift:
+class InjectedDrift(Injected):
     """A slow change of the force reading with time: load-cell zero drift.
 
     ``linear``: ``N_per_hour`` per hour from the start of the test; ``exponential``: the zero
@@ -250,7 +268,7 @@ class InjectedDrift:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedCompliance:
+class InjectedCompliance(Injected):
     """The rig stretches under load: the encoder reads the rod, not the muscle.
 
     The load cell, its mounts and a cable between them stretch by ``mm_per_N``·F, so the muscle
@@ -262,7 +280,7 @@ class InjectedCompliance:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedViscousDamping:
+class InjectedViscousDamping(Injected):
     """A force opposing the rate of contraction: F − g·v (Cullinan's −G·ẏ term, eq. 3).
 
     Needs sweeps run at different speeds to be told apart from hysteresis; give the
@@ -276,7 +294,7 @@ class InjectedViscousDamping:
 
 
 @dataclasses.dataclass(frozen=True)
-class InjectedCovariate:
+class InjectedCovariate(Injected):
     """Any other influence: a logged quantity (``column``) that the force depends on.
 
     Each sweep gets its own value drawn uniformly in ``range``, rounded to ``resolution``,
