@@ -147,6 +147,8 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _show_warning
             if staging is not None:
                 args.out = str(staging)
+            if getattr(args, "before_jax", None) is not None:
+                args.before_jax(args)  # what must come before JAX starts (jax.distributed)
             if getattr(args, "prepare", None) is not None:
                 # JAX's start-up, the disk caches and what the command does before its data
                 # are read, on a thread of their own while it reads them.

@@ -137,3 +137,64 @@ def test_a_warning_of_every_chunk_is_shown_once_and_counted(tmp_path, bench_fram
     # the first chunk's warning, then one line that counts the others
     assert captured.err.count("censored rows") == 2, captured.err
     assert f"the same warning in {summary['chunks'] - 1} more chunk(s)" in captured.err
+
+
+# -- several processes (jax.distributed) ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 5])
+def test_shares_hold_every_muscle_once_in_file_order(tmp_path, bench_frame, count):
+    """Row groups of 1,000 rows and muscles of 180: the splits fall inside muscles and move
+    to the next start of one."""
+    path = _parquet(tmp_path, bench_frame, row_group=1000)
+    muscles, rows = [], []
+    for index in range(count):
+        for chunk in load_bench_chunks(path, 700, share=(index, count)):
+            muscles += list(chunk.muscles)
+            rows.append(chunk.frame["source_row"].to_numpy())
+    assert muscles == list(pd.unique(bench_frame["muscle"]))
+    assert np.array_equal(np.concatenate(rows), np.arange(1, len(bench_frame) + 1))
+
+
+def test_two_processes_give_the_one_process_constants(tmp_path, bench_frame, pamid_cli):
+    path = _parquet(tmp_path, bench_frame, row_group=1000)
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert main(["fit", str(path), "--stream", "--chunk-rows", "1500", "--intervals", "wald",
+                 "--out", str(one)]) == 0
+    proc = pamid_cli(["fit", path, "--stream", "--chunk-rows", "1500", "--intervals", "wald",
+                      "--processes", "2", "--json", "--out", two], timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads(proc.stdout)  # one JSON object: gloo's line went to stderr
+    assert summary["muscles"] == MUSCLES
+    assert [p["process"] for p in summary["processes"]] == [0, 1]
+    assert all(p["muscles"] > 0 for p in summary["processes"])
+    assert "process 1 of 2: chunk" in proc.stderr
+    a, b = pd.read_parquet(one / "constants.parquet"), pd.read_parquet(two / "constants.parquet")
+    assert list(a["muscle"]) == list(b["muscle"])
+    for name in ("a1", "a2", "a3", "a4", "a5", "a6", "rmse_N", "a3_wald_high"):
+        np.testing.assert_allclose(b[name], a[name], rtol=1e-8)
+
+
+def test_a_bad_row_in_one_process_ends_every_process_with_its_message(tmp_path, bench_frame,
+                                                                        pamid_cli):
+    frame = bench_frame.copy()
+    frame.loc[len(frame) - 10, "force_N"] = np.nan  # in the second process' share
+    path = _parquet(tmp_path, frame, row_group=1000)
+    proc = pamid_cli(["fit", path, "--stream", "--intervals", "wald", "--processes", "2",
+                      "--out", tmp_path / "out"], timeout=600)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    assert f"process 1 of 2 stopped: {path}" in proc.stderr
+    assert f"row {len(frame) - 9}" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_what_several_processes_refuse(tmp_path, bench_frame, capsys):
+    path = _parquet(tmp_path, bench_frame)
+    assert main(["fit", str(path), "--processes", "2", "--out", str(tmp_path / "o")]) == 2
+    assert "add --stream" in capsys.readouterr().err
+    assert main(["fit", str(path), "--stream", "--coordinator", "127.0.0.1:1", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "needs --num-processes and --process-id" in capsys.readouterr().err
+    assert main(["fit", str(path), "--stream", "--process-id", "1", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "go with --coordinator" in capsys.readouterr().err

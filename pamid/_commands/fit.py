@@ -47,12 +47,14 @@ def register(subparsers) -> None:
 
     fit.add_argument("--max-plots", type=int, action=NonNegative, default=6,
                      help="muscles to plot (default 6)")
+    from . import fit_processes
     from ._reading import add_reading_arguments
     from .mcmc_options import add_mcmc_arguments
 
+    fit_processes.add_arguments(fit)
     add_reading_arguments(fit)
     add_mcmc_arguments(fit)
-    fit.set_defaults(func=run, prepare=prepare, outputs=(  # the names it writes in --out
+    fit.set_defaults(func=run, prepare=prepare, before_jax=fit_processes.start, outputs=(
         "fit.json", "fit_*.png", "residuals_*.png", "rmse_histogram.png", "mcmc_*.nc",
         "mcmc_*.nc3", "mcmc_*.png", "constants.parquet", "fit_stream.json"))
 
@@ -167,9 +169,13 @@ def run(args) -> int:
         startup = _export_cache.prepare_in_background(then=lambda: prepare(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
     if args.stream:
+        from . import fit_processes
         from .fit_stream import run_stream
 
-        return run_stream(args, startup, intervals)
+        try:
+            return run_stream(args, startup, intervals)
+        finally:
+            fit_processes.finish(args)
     if args.bootstrap and "bootstrap" not in intervals:
         intervals += ("bootstrap",)
     warming: list[threading.Thread] = []

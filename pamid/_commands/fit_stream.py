@@ -41,7 +41,11 @@ def run_stream(args, startup, intervals: tuple[str, ...]) -> int:
     if args.method != "ls":
         raise ValueError("--stream fits by least squares (--method ls); sample a posterior "
                          "of a few muscles with --method mcmc on a file that fits in memory")
-    if not args.out:
+    share = _share(args)
+    if share is not None and share[0] > 0 and args.out:
+        raise ValueError(f"process {share[0]} was given --out: process 0 gathers every "
+                         "process' muscles and writes them; start the others without --out")
+    if (share is None or share[0] == 0) and not args.out:
         raise ValueError("--stream writes one row per muscle to --out FOLDER/constants.parquet"
                          " (a file too big for memory has too many muscles for the screen): "
                          "give --out")
@@ -59,15 +63,22 @@ def run_stream(args, startup, intervals: tuple[str, ...]) -> int:
             raise ValueError(f"--{option.replace('_', '-')} does not apply with --stream, "
                              "which reads Parquet files")
     t0 = time.perf_counter()
-    chunks = load_bench_chunks(args.data, args.chunk_rows, **reading)
+    chunks = load_bench_chunks(args.data, args.chunk_rows, share=share, **reading)
     spec, bounds = startup.result()  # a bad model or bounds: told before any data are read
-    out = Path(args.out)
     summary = _Summary(args, intervals)
+    if share is None:
+        out = Path(args.out)
 
-    def write(tmp: str) -> None:
-        _stream(chunks, tmp, args, spec, bounds, intervals, summary, t0)
+        def write(tmp: str) -> None:
+            _stream(chunks, tmp, args, spec, bounds, intervals, summary, t0)
 
-    write_atomic(out / "constants.parquet", write)
+        write_atomic(out / "constants.parquet", write)
+    else:
+        parts = _stream_share(chunks, args, spec, bounds, intervals, summary, t0, share)
+        if share[0] > 0:  # process 0 writes and says everything
+            return 0 if summary.not_converged_total == 0 else 1
+        out = Path(args.out)
+        write_atomic(out / "constants.parquet", lambda tmp: _write_parts(parts, tmp))
     for (category, _), (text, n) in summary.warned.items():
         if n > 1:
             text = text.removeprefix(f"{args.data}: ")
@@ -91,7 +102,90 @@ def run_stream(args, startup, intervals: tuple[str, ...]) -> int:
 
 
 def _say(message: str) -> None:
-    print(f"[pamid] {message}", file=sys.stderr, flush=True)
+    print(f"[pamid]{_WHO[0]} {message}", file=sys.stderr, flush=True)
+
+
+_WHO = [""]  # " process 1 of 2" where several processes share the file
+
+
+def _share(args) -> tuple[int, int] | None:
+    """(this process' index, the number of processes) where several fit the file together
+    (:mod:`pamid._commands.fit_processes`), else None."""
+    import jax
+
+    if not (getattr(args, "processes", None) or getattr(args, "coordinator", None)):
+        return None
+    index, count = jax.process_index(), jax.process_count()
+    if count < 2:
+        return None
+    _WHO[0] = f" process {index} of {count}:"
+    return index, count
+
+
+def _stream_share(chunks, args, spec, bounds, intervals, summary, t0, share):
+    """This process' share, fitted into memory; then every process' rows and counts
+    gathered (``jax.experimental.multihost_utils``): process 0 gets the tables, in process
+    order, which is file order. A bad input in any process ends every process (each joins
+    the gather first, so none waits for ever), with that process' message."""
+    import pyarrow as pa
+
+    from .._errors import BenchDataError
+
+    sink = pa.BufferOutputStream()
+    error = None
+    try:
+        _stream(chunks, sink, args, spec, bounds, intervals, summary, t0, empty_ok=True)
+    except (BenchDataError, ValueError) as exc:
+        error = str(exc)
+    states = [json.loads(b) for b in _gather(json.dumps(
+        {"error": error, **summary.state()}).encode())]
+    bad = [(i, s["error"]) for i, s in enumerate(states) if s["error"]]
+    if bad:
+        i, message = bad[0]
+        raise ValueError(message if i == share[0] else
+                         f"process {i} of {share[1]} stopped: {message}")
+    tables = _gather(sink.getvalue().to_pybytes())
+    summary.merge(states)
+    if share[0] > 0:
+        return None
+    import pyarrow.parquet as pq
+
+    parts = [pq.read_table(pa.BufferReader(t)) for t in tables if t]
+    summary.rmse = [np.asarray(t.column("rmse_N").to_numpy(), float) for t in parts]
+    return parts
+
+
+def _write_parts(parts, path: str) -> None:
+    import pyarrow.parquet as pq
+
+    with pq.ParquetWriter(path, parts[0].schema) as writer:
+        for table in parts:
+            writer.write_table(table.cast(parts[0].schema))
+
+
+def _gather(data: bytes) -> list[bytes]:
+    """``data`` of every process, in process order, on every process (two all-gathers:
+    the sizes, then the bytes padded to the largest)."""
+    import os
+
+    from jax.experimental import multihost_utils
+
+    array = np.frombuffer(data, dtype=np.uint8)
+    # gloo's C++ says "[Gloo] Rank 0 is connected to 1 peer ranks…" on standard output at
+    # the first collective: it goes to standard error, so --json stays one JSON object
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        sizes = np.asarray(multihost_utils.process_allgather(
+            np.array([array.size], dtype=np.int64))).reshape(-1)
+        padded = np.zeros(max(int(sizes.max()), 1), dtype=np.uint8)
+        padded[: array.size] = array
+        everything = np.asarray(multihost_utils.process_allgather(padded))
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+    return [bytes(row[: int(n)]) for row, n in zip(everything, sizes, strict=True)]
 
 
 class _Summary:
@@ -108,6 +202,7 @@ class _Summary:
         self.names: tuple[str, ...] = ()
         self.fit_s = self.read_s = 0.0
         self.warned: dict[tuple, tuple[str, int]] = {}  # -> (first text, chunks)
+        self.processes: list[dict] = []  # per process, where several share the file
 
     def add(self, bench, result) -> None:
         self.chunks += 1
@@ -124,9 +219,39 @@ class _Summary:
                                            "why": result.message(i)})
         self.rmse.append(np.asarray(result.rmse_N, float))
 
+    @property
+    def not_converged_total(self) -> int:
+        return sum(n for s, n in self.statuses.items() if s not in ("converged", "at_bound"))
+
+    def state(self) -> dict:
+        """What another process needs of this one's counts (JSON)."""
+        return {"muscles": self.muscles, "rows": self.rows, "chunks": self.chunks,
+                "censored": self.censored, "statuses": self.statuses,
+                "not_converged": self.not_converged, "names": list(self.names),
+                "units": self.units, "read_s": self.read_s, "fit_s": self.fit_s,
+                "peak_rss_MB": _peak_mb()}
+
+    def merge(self, states: list[dict]) -> None:
+        """The counts of every process (their :meth:`state`, in process order)."""
+        self.muscles = sum(s["muscles"] for s in states)
+        self.rows = sum(s["rows"] for s in states)
+        self.chunks = sum(s["chunks"] for s in states)
+        self.censored = sum(s["censored"] for s in states)
+        self.statuses = {}
+        for s in states:
+            for k, n in s["statuses"].items():
+                self.statuses[k] = self.statuses.get(k, 0) + n
+        self.not_converged = [m for s in states for m in s["not_converged"]][:NAMED]
+        named = next((s for s in states if s["names"]), None)
+        if named is not None:
+            self.names, self.units = tuple(named["names"]), named["units"]
+        self.processes = [{"process": i, "muscles": s["muscles"], "rows": s["rows"],
+                           "read_s": round(s["read_s"], 3), "fit_s": round(s["fit_s"], 3),
+                           "peak_rss_MB": s["peak_rss_MB"]} for i, s in enumerate(states)]
+
     def payload(self, seconds: float) -> dict:
         rmse = np.concatenate(self.rmse) if self.rmse else np.zeros(0)
-        bad = sum(n for s, n in self.statuses.items() if s not in ("converged", "at_bound"))
+        bad = self.not_converged_total
         finite = rmse[np.isfinite(rmse)]
         return {
             "source": self.source, "model": self.model, "solver": self.solver,
@@ -141,12 +266,15 @@ class _Summary:
             "constants_file": "constants.parquet",
             "seconds": round(seconds, 3), "read_s": round(self.read_s, 3),
             "fit_s": round(self.fit_s, 3),
-            "peak_rss_MB": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+            "peak_rss_MB": _peak_mb(),
+            **({"processes": self.processes} if self.processes else {}),
         }
 
 
-def _stream(chunks, path: str, args, spec, bounds, intervals, summary: _Summary, t0) -> None:
-    """Fit every chunk and append its rows to the Parquet file at ``path``."""
+def _stream(chunks, path, args, spec, bounds, intervals, summary: _Summary, t0,
+            empty_ok: bool = False) -> None:
+    """Fit every chunk and append its rows to the Parquet file at ``path`` (a path or an
+    Arrow output stream); ``empty_ok``: a share without a muscle writes nothing."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -187,7 +315,7 @@ def _stream(chunks, path: str, args, spec, bounds, intervals, summary: _Summary,
     finally:
         if writer is not None:
             writer.close()
-    if writer is None:  # no muscle at all: the loader has said why
+    if writer is None and not empty_ok:  # no muscle at all: the loader has said why
         raise ValueError(f"{args.data}: no muscle to fit")
 
 
@@ -226,6 +354,10 @@ def _resident_bytes() -> int | None:
         return int(Path("/proc/self/statm").read_text().split()[1]) * resource.getpagesize()
     except (OSError, ValueError, IndexError):
         return None
+
+
+def _peak_mb() -> float:
+    return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
 
 
 def _memory() -> str:

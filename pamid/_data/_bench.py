@@ -322,6 +322,7 @@ def load_bench_chunks(
     l0_mm: float | None = None,
     keep_censored: bool = False,
     columns: dict[str, str] | None = None,
+    share: tuple[int, int] | None = None,
 ) -> Iterator[BenchData]:
     """A bench file bigger than memory, as :class:`BenchData` of whole muscles, about
     ``rows`` rows each, in file order; memory holds one chunk at a time.
@@ -331,7 +332,8 @@ def load_bench_chunks(
     at a time (Parquet: :attr:`pamid._data._readers.Reader.chunks`), and each muscle's
     rows must be together: a muscle that comes back after other muscles' rows is an error
     naming its row (sort the file by muscle). Warnings (censored rows, blank cells) are
-    those of each chunk.
+    those of each chunk. ``share`` = (index, count): the muscles of process ``index`` of
+    ``count`` only, every muscle in exactly one share (``pamid fit --stream --processes``).
     """
     shown = str(path)
     p = Path(path)
@@ -347,7 +349,7 @@ def load_bench_chunks(
                    f"as one of the {reader.name}: convert it (pandas: "
                    "pd.read_csv(path).to_parquet(new_path)) or load it whole")
     seen: set[str] = set()
-    for table in reader.chunks(p, shown, int(rows), columns=columns):
+    for table in reader.chunks(p, shown, int(rows), columns=columns, share=share):
         table.rename(columns)
         bench = _interpret(table, l0_value, keep_censored)
         again = [m for m in bench.muscles if m in seen]

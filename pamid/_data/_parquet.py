@@ -52,7 +52,8 @@ def _schema_names(source, shown: str) -> list[str]:
 
 
 def parquet_chunks(path: Path, shown: str, rows: int,
-                   columns: dict[str, str] | None = None) -> Iterator[_Table]:
+                   columns: dict[str, str] | None = None,
+                   share: tuple[int, int] | None = None) -> Iterator[_Table]:
     """A Parquet file as tables of whole muscles, in file order, about ``rows`` rows each:
     read one record batch at a time, so that memory holds one chunk, never the file.
 
@@ -60,11 +61,13 @@ def parquet_chunks(path: Path, shown: str, rows: int,
     user's mapping ``columns``): the rows of the last muscle of a batch wait for the next
     batch, so a muscle of more than ``rows`` rows comes whole in a larger chunk. A last
     chunk of less than half ``rows`` joins the one before it (a chunk of a few muscles
-    would compile programs of its own shape for them). A file
-    without a muscle column is one muscle, read whole. Each table's ``row_offset`` keeps
-    the file's row numbers in messages. A muscle's rows must be together; that a muscle
-    does not come back in a later chunk is the loader's check
-    (:func:`pamid._data._bench.load_bench_chunks`)."""
+    would compile programs of its own shape for them). A file without a muscle column is
+    one muscle, read whole. Each table's ``row_offset`` keeps the file's row numbers in
+    messages. A muscle's rows must be together; that a muscle does not come back in a
+    later chunk is the loader's check (:func:`pamid._data._bench.load_bench_chunks`).
+
+    ``share`` = (index, count): only the muscles of process ``index`` of ``count``
+    (:func:`parquet_share`): each process reads its own rows, none twice."""
     import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
@@ -82,17 +85,32 @@ def parquet_chunks(path: Path, shown: str, rows: int,
         raise BenchDataError(shown, problem.message, column=problem.column) from None
     muscle = names[canonical.index("muscle")] if "muscle" in canonical else None
     labels = tuple(names[canonical.index(c)] for c in ("muscle", "trial") if c in canonical)
-    pending, held, offset = None, None, 0
+    pending, held = None, None
     try:
-        if muscle is None:  # one muscle: the whole file
-            pending = pq.ParquetFile(path).read()
         # pre_buffer off: with it, pyarrow's reader kept ~14 MB of every row group it had
         # read (a file of 1,000,000 muscles grew the process by 2.7 GB)
-        for batch in () if muscle is None else pq.ParquetFile(path, pre_buffer=False) \
-                .iter_batches(batch_size=max(1, int(rows))):
-            part = pa.Table.from_batches([batch])
-            pending = part if pending is None else pa.concat_tables([pending, part])
-            if pending.num_rows < rows:
+        reader = pq.ParquetFile(path, pre_buffer=False)
+        total = reader.metadata.num_rows
+        start, stop = (0, total) if share is None else parquet_share(reader, muscle, *share)
+        if start >= stop and share is not None:
+            return  # a process with no muscle of its own
+        if muscle is None:  # one muscle: the whole file
+            pending = reader.read()
+        group_rows = np.cumsum([0] + [reader.metadata.row_group(g).num_rows
+                                      for g in range(reader.num_row_groups)])
+        first = int(np.searchsorted(group_rows, start, side="right")) - 1
+        position, offset = int(group_rows[max(first, 0)]), start
+        batches = () if muscle is None or start >= stop else reader.iter_batches(
+            batch_size=max(1, int(rows)), row_groups=range(first, reader.num_row_groups))
+        for batch in batches:
+            lo, hi = max(start - position, 0), min(stop - position, batch.num_rows)
+            position += batch.num_rows
+            if hi > lo:
+                part = pa.Table.from_batches([batch]).slice(lo, hi - lo)
+                pending = part if pending is None else pa.concat_tables([pending, part])
+            if position >= stop:
+                break
+            if pending is None or pending.num_rows < rows:
                 continue
             ids = pending.column(muscle)
             last = ids[len(ids) - 1]
@@ -115,8 +133,44 @@ def parquet_chunks(path: Path, shown: str, rows: int,
     if held is not None:
         yield _arrow_table(held, names, shown, offset, labels)
         offset += held.num_rows
-    if pending.num_rows or offset == 0:
+    if pending.num_rows or offset == start:
         yield _arrow_table(pending, names, shown, offset, labels)
+
+
+def parquet_share(reader, muscle: str | None, index: int, count: int) -> tuple[int, int]:
+    """The rows [start, stop) of process ``index`` of ``count``: the row groups are split
+    evenly, and each split moves forward to the next start of a muscle, so that every
+    muscle is read whole by the one process where its first row lies. Reads the muscle
+    column of the row groups around a split only. A file without a muscle column is one
+    muscle: process 0's."""
+    total = reader.metadata.num_rows
+    if muscle is None:
+        return (0, total) if index == 0 else (total, total)
+    return _split(reader, muscle, index, count), _split(reader, muscle, index + 1, count)
+
+
+def _split(reader, muscle: str, k: int, count: int) -> int:
+    """The first row of share ``k``: the first muscle that starts at or after the first
+    row of row group ``k·G // count``."""
+    import pyarrow.compute as pc
+
+    groups = reader.num_row_groups
+    g = groups * k // count
+    if g == 0:
+        return 0
+    if g >= groups:
+        return reader.metadata.num_rows
+    row = sum(reader.metadata.row_group(i).num_rows for i in range(g))
+    ids = reader.read_row_group(g - 1, columns=[muscle]).column(0)
+    before = ids[len(ids) - 1] if len(ids) else None
+    while g < groups:
+        ids = reader.read_row_group(g, columns=[muscle]).column(0)
+        differs = np.asarray(pc.fill_null(pc.not_equal(ids, before), True)) \
+            if before is not None and before.is_valid else np.ones(len(ids), bool)
+        if differs.any():
+            return row + int(np.argmax(differs))
+        row, g = row + len(ids), g + 1
+    return row
 
 
 def _arrow_table(table, names: list[str], shown: str, row_offset: int = 0,
