@@ -229,7 +229,7 @@ class _Summary:
                 "censored": self.censored, "statuses": self.statuses,
                 "not_converged": self.not_converged, "names": list(self.names),
                 "units": self.units, "read_s": self.read_s, "fit_s": self.fit_s,
-                "peak_rss_MB": _peak_mb()}
+                "peak_rss_MB": _peak_mb(), "devices": _devices()}
 
     def merge(self, states: list[dict]) -> None:
         """The counts of every process (their :meth:`state`, in process order)."""
@@ -247,7 +247,8 @@ class _Summary:
             self.names, self.units = tuple(named["names"]), named["units"]
         self.processes = [{"process": i, "muscles": s["muscles"], "rows": s["rows"],
                            "read_s": round(s["read_s"], 3), "fit_s": round(s["fit_s"], 3),
-                           "peak_rss_MB": s["peak_rss_MB"]} for i, s in enumerate(states)]
+                           "peak_rss_MB": s["peak_rss_MB"], "devices": s["devices"]}
+                          for i, s in enumerate(states)]
 
     def payload(self, seconds: float) -> dict:
         rmse = np.concatenate(self.rmse) if self.rmse else np.zeros(0)
@@ -354,6 +355,13 @@ def _resident_bytes() -> int | None:
         return int(Path("/proc/self/statm").read_text().split()[1]) * resource.getpagesize()
     except (OSError, ValueError, IndexError):
         return None
+
+
+def _devices() -> list[str]:
+    """The devices this process fits on (``jax.local_devices()``)."""
+    import jax
+
+    return [str(d) for d in jax.local_devices()]
 
 
 def _peak_mb() -> float:

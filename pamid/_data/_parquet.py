@@ -138,11 +138,10 @@ def parquet_chunks(path: Path, shown: str, rows: int,
 
 
 def parquet_share(reader, muscle: str | None, index: int, count: int) -> tuple[int, int]:
-    """The rows [start, stop) of process ``index`` of ``count``: the row groups are split
-    evenly, and each split moves forward to the next start of a muscle, so that every
-    muscle is read whole by the one process where its first row lies. Reads the muscle
-    column of the row groups around a split only. A file without a muscle column is one
-    muscle: process 0's."""
+    """The rows [start, stop) of process ``index`` of ``count``: the rows are split evenly,
+    and each split moves forward to the next start of a muscle, so that every muscle is read
+    whole by the one process where its first row lies. Reads the muscle column of the row
+    groups at a split only. A file without a muscle column is one muscle: process 0's."""
     total = reader.metadata.num_rows
     if muscle is None:
         return (0, total) if index == 0 else (total, total)
@@ -150,27 +149,34 @@ def parquet_share(reader, muscle: str | None, index: int, count: int) -> tuple[i
 
 
 def _split(reader, muscle: str, k: int, count: int) -> int:
-    """The first row of share ``k``: the first muscle that starts at or after the first
-    row of row group ``k·G // count``."""
+    """The first row of share ``k``: the first muscle that starts at or after row
+    ``k·rows // count``."""
     import pyarrow.compute as pc
 
-    groups = reader.num_row_groups
-    g = groups * k // count
-    if g == 0:
-        return 0
-    if g >= groups:
-        return reader.metadata.num_rows
-    row = sum(reader.metadata.row_group(i).num_rows for i in range(g))
-    ids = reader.read_row_group(g - 1, columns=[muscle]).column(0)
-    before = ids[len(ids) - 1] if len(ids) else None
-    while g < groups:
-        ids = reader.read_row_group(g, columns=[muscle]).column(0)
-        differs = np.asarray(pc.fill_null(pc.not_equal(ids, before), True)) \
-            if before is not None and before.is_valid else np.ones(len(ids), bool)
+    total = reader.metadata.num_rows
+    target = total * k // count
+    if target <= 0 or target >= total:
+        return max(0, min(target, total))
+    starts = np.cumsum([0] + [reader.metadata.row_group(g).num_rows
+                              for g in range(reader.num_row_groups)])
+    g = int(np.searchsorted(starts, target, side="right")) - 1
+    ids = reader.read_row_group(g, columns=[muscle]).column(0)
+    at = target - int(starts[g])
+    if at > 0:
+        before = ids[at - 1]
+    else:
+        previous = reader.read_row_group(g - 1, columns=[muscle]).column(0)
+        before = previous[len(previous) - 1]
+    while True:
+        tail = ids.slice(at)
+        differs = np.asarray(pc.fill_null(pc.not_equal(tail, before), True)) \
+            if before.is_valid else np.ones(len(tail), bool)
         if differs.any():
-            return row + int(np.argmax(differs))
-        row, g = row + len(ids), g + 1
-    return row
+            return int(starts[g]) + at + int(np.argmax(differs))
+        g, at = g + 1, 0
+        if g >= reader.num_row_groups:
+            return total
+        ids = reader.read_row_group(g, columns=[muscle]).column(0)
 
 
 def _arrow_table(table, names: list[str], shown: str, row_offset: int = 0,
