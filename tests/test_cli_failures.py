@@ -83,15 +83,21 @@ def test_xla_resource_exhausted_is_out_of_memory(bench_csv, monkeypatch, capsys)
                     "more memory")
 
 
-def test_out_of_memory_elsewhere_suggests_a_smaller_file(bench_csv, monkeypatch, capsys):
+def test_out_of_memory_in_fit_suggests_the_stream(bench_csv, monkeypatch, capsys):
     monkeypatch.delenv("PAMID_DEBUG", raising=False)
     import pamid._fit._api as fit_api
 
     monkeypatch.setattr(fit_api, "fit_least_squares", _raise(MemoryError()))
     assert main(["fit", str(bench_csv), "--json"]) == 3
     line = _one_line(capsys.readouterr().err)
-    assert line == ("pamid: error: out of memory (MemoryError); try a smaller file or a "
-                    "machine with more memory")
+    assert line == ("pamid: error: out of memory (MemoryError); a Parquet file bigger than "
+                    "memory is fitted a chunk of muscles at a time with --stream (a CSV file: "
+                    "convert it to Parquet first); or a machine with more memory")
+
+
+def test_out_of_memory_elsewhere_suggests_a_smaller_file():
+    assert failure.describe(MemoryError(), "compare") == (
+        "out of memory (MemoryError); try a smaller file or a machine with more memory")
 
 
 # -- any other failure ------------------------------------------------------------------------

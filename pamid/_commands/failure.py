@@ -145,8 +145,11 @@ def describe(exc: BaseException, command: str | None) -> str:
     """One line: what happened and what to do."""
     what = f"{type(exc).__name__}: {_quote(exc)}" if _quote(exc) else type(exc).__name__
     if is_out_of_memory(exc):
-        advice = ("try --max-rows N or a machine with more memory" if command == "diagnose"
-                  else "try a smaller file or a machine with more memory")
+        advice = {"diagnose": "try --max-rows N or a machine with more memory",
+                  "fit": "a Parquet file bigger than memory is fitted a chunk of muscles at "
+                         "a time with --stream (a CSV file: convert it to Parquet first); "
+                         "or a machine with more memory"}.get(
+            command, "try a smaller file or a machine with more memory")
         return f"out of memory ({what}); {advice}"
     return (f"internal error ({what}); rerun with PAMID_DEBUG=1 for the traceback and "
             "report it")
