@@ -118,6 +118,8 @@ def test_what_stream_refuses(tmp_path, bench_frame, capsys):
     assert "give --out" in capsys.readouterr().err
     assert main(["fit", str(path), "--stream", "--bootstrap", "10", "--out", out]) == 2
     assert "drop --bootstrap" in capsys.readouterr().err
+    assert main(["fit", str(path), "--stream", "--sep", ";", "--out", out]) == 2
+    assert "(--sep) applies to CSV files only" in capsys.readouterr().err  # load_bench's words
     with pytest.raises(SystemExit):
         main(["fit", str(path), "--stream", "--chunk-rows", "0", "--out", out])
     assert "must be an integer ≥ 1" in capsys.readouterr().err

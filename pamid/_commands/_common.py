@@ -60,24 +60,23 @@ def count(name: str, value: int, *, low: int = 0, high: int | None = None) -> in
 
 
 class NonNegative(argparse.Action):
-    """The ``action`` of an ``int`` option that counts (``--max-plots``): a negative value is
-    argparse's one-line error, ``argument --max-plots: must be an integer ≥ 0, got -1``
-    (exit 2), as a value that is no integer is (``invalid int value: '1.5'``)."""
+    """The ``action`` of an ``int`` option that counts (``--max-plots``): a value below
+    :attr:`minimum` is argparse's one-line error, ``argument --max-plots: must be an integer
+    ≥ 0, got -1`` (exit 2), as a value that is no integer is (``invalid int value: '1.5'``)."""
+
+    minimum = 0
 
     def __call__(self, parser, namespace, values, option_string=None):
-        if values < 0:
-            raise argparse.ArgumentError(self, f"must be an integer ≥ 0, got {values}")
+        if values < self.minimum:
+            raise argparse.ArgumentError(
+                self, f"must be an integer ≥ {self.minimum}, got {values}")
         setattr(namespace, self.dest, values)
 
 
-class Positive(argparse.Action):
-    """The ``action`` of an ``int`` option that must be 1 or more (``--chunk-rows``):
-    anything else is argparse's one-line error (exit 2)."""
+class Positive(NonNegative):
+    """The same for an ``int`` option that must be 1 or more (``--chunk-rows``)."""
 
-    def __call__(self, parser, namespace, values, option_string=None):
-        if values < 1:
-            raise argparse.ArgumentError(self, f"must be an integer ≥ 1, got {values}")
-        setattr(namespace, self.dest, values)
+    minimum = 1
 
 
 #: Seeds that :func:`jax.random.key` turns into distinct keys.

@@ -49,21 +49,15 @@ def run_stream(args, startup, intervals: tuple[str, ...]) -> int:
         raise ValueError("--stream writes one row per muscle to --out FOLDER/constants.parquet"
                          " (a file too big for memory has too many muscles for the screen): "
                          "give --out")
-    if args.bootstrap:
+    if args.bootstrap or "bootstrap" in intervals:
         raise ValueError("--stream computes wald, profile, cluster and hac intervals, not the "
-                         "bootstrap (B refits of every muscle); drop --bootstrap")
-    if "bootstrap" in intervals:
-        raise ValueError("--stream computes wald, profile, cluster and hac intervals, not the "
-                         "bootstrap; leave it out of --intervals")
+                         "bootstrap (B refits of every muscle); drop --bootstrap and leave it "
+                         "out of --intervals")
     from ._reading import reading_options
 
-    reading = reading_options(args)
-    for option in ("sep", "decimal", "sheet", "header_row"):
-        if reading.pop(option) is not None:
-            raise ValueError(f"--{option.replace('_', '-')} does not apply with --stream, "
-                             "which reads Parquet files")
     t0 = time.perf_counter()
-    chunks = load_bench_chunks(args.data, args.chunk_rows, share=share, **reading)
+    chunks = load_bench_chunks(args.data, args.chunk_rows, share=share,
+                               **reading_options(args))
     spec, bounds = startup.result()  # a bad model or bounds: told before any data are read
     summary = _Summary(args, intervals)
     if share is None:
@@ -299,7 +293,7 @@ def _stream(chunks, path, args, spec, bounds, intervals, summary: _Summary, t0,
                                            intervals=intervals, bounds=bounds)
             _pass_on(caught, summary)
             summary.fit_s += time.perf_counter() - t_fit
-            table = pa.Table.from_pandas(_rows(bench, result), preserve_index=False)
+            table = pa.Table.from_pandas(_rows(result), preserve_index=False)
             if writer is None:
                 meta = {b"pamid": json.dumps({
                     "model": args.model, "units": dict(result.param_units),
@@ -387,16 +381,15 @@ def _pass_on(caught, summary: _Summary) -> None:
         summary.warned[key] = (first, n + 1)
 
 
-def _rows(bench, result):
+def _rows(result):
     """One row per muscle of a chunk (module text)."""
     import pandas as pd
 
     shown_ci, _ = result.shown_intervals()
     n = len(result.muscles)
-    counts = bench.frame.groupby("muscle", sort=False).size()
     data = {
         "muscle": list(result.muscles),
-        "n_rows": counts.reindex(list(result.muscles)).to_numpy(np.int64),
+        "n_rows": np.asarray(result.n, np.int64),
         "status": list(result.status),
         "converged": np.asarray(result.converged, bool),
         "n_steps": np.asarray(result.n_steps, np.int64),

@@ -289,11 +289,8 @@ def load_bench(
     # that looks at the file (None for a regular file).
     stream = _stream_bytes(p, shown)
     reader = reader_for(p, stream)
-    options = {"sheet": sheet, "header_row": header_row, "sep": sep, "decimal": decimal}
-    options = {name: value for name, value in options.items() if value is not None}
-    for name, value in options.items():
-        if name not in reader.options:
-            raise BenchDataError(shown, _not_applicable(name, value))
+    options = _reader_options(reader, shown, sheet=sheet, header_row=header_row, sep=sep,
+                              decimal=decimal)
     if sheet == ALL_SHEETS and reader.parts is not None:
         return _load_sheets(p, shown, stream, reader, options, columns, l0_value,
                             keep_censored, on_rows)
@@ -323,6 +320,10 @@ def load_bench_chunks(
     keep_censored: bool = False,
     columns: dict[str, str] | None = None,
     share: tuple[int, int] | None = None,
+    sep: str | None = None,
+    decimal: str | None = None,
+    sheet: str | None = None,
+    header_row: int | None = None,
 ) -> Iterator[BenchData]:
     """A bench file bigger than memory, as :class:`BenchData` of whole muscles, about
     ``rows`` rows each, in file order; memory holds one chunk at a time.
@@ -334,13 +335,15 @@ def load_bench_chunks(
     naming its row (sort the file by muscle). Warnings (censored rows, blank cells) are
     those of each chunk. ``share`` = (index, count): the muscles of process ``index`` of
     ``count`` only, every muscle in exactly one share (``pamid fit --stream --processes``).
+    The reading options are :func:`load_bench`'s; one the format does not take is the same
+    error there.
     """
     shown = str(path)
     p = Path(path)
     if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
         raise ValueError(f"rows per chunk must be a whole number, 1 or more; got {rows!r}")
     l0_value = _l0_argument(shown, l0_mm)
-    _check_reading_options(shown, None, None, columns)
+    sep = _check_reading_options(shown, sep, decimal, columns)
     reader = reader_for(p, None)
     if reader.chunks is None:
         able = " or ".join(r.name for r in FORMATS if r.chunks is not None)
@@ -348,6 +351,8 @@ def load_bench_chunks(
             shown, f"only {able} can be read a part at a time (--stream); this file is read "
                    f"as one of the {reader.name}: convert it (pandas: "
                    "pd.read_csv(path).to_parquet(new_path)) or load it whole")
+    _reader_options(reader, shown, sheet=sheet, header_row=header_row, sep=sep,
+                    decimal=decimal)
     seen: set[str] = set()
     for table in reader.chunks(p, shown, int(rows), columns=columns, share=share):
         table.rename(columns)
@@ -362,6 +367,16 @@ def load_bench_chunks(
                 column="muscle", index=row - 1 - table.row_offset)
         seen.update(bench.muscles)
         yield bench
+
+
+def _reader_options(reader, shown: str, **given) -> dict:
+    """The reading options given (not None); an error naming the formats for one that
+    ``reader``'s format does not take."""
+    options = {name: value for name, value in given.items() if value is not None}
+    for name, value in options.items():
+        if name not in reader.options:
+            raise BenchDataError(shown, _not_applicable(name, value))
+    return options
 
 
 def _l0_argument(shown: str, l0_mm) -> float | None:
