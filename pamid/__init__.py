@@ -110,6 +110,7 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "StaticBenchProtocol": ("._virtual._braided", "StaticBenchProtocol"),
     "simulate_braided_pam_bench": ("._virtual._braided", "simulate_braided_pam_bench"),
     "default_bench_path": ("._virtual._default", "default_bench_path"),
+    "Injected": ("._effects._inject", "Injected"),
     "InjectedCompliance": ("._effects._inject", "InjectedCompliance"),
     "InjectedCovariate": ("._effects._inject", "InjectedCovariate"),
     "InjectedDrift": ("._effects._inject", "InjectedDrift"),
@@ -318,6 +319,7 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._diagnose._length import LengthStudy as LengthStudy
     from ._diagnose._length import length_study as length_study
     from ._diagnose._result import Diagnosis as Diagnosis
+    from ._effects._inject import Injected as Injected
     from ._effects._inject import InjectedCompliance as InjectedCompliance
     from ._effects._inject import InjectedCovariate as InjectedCovariate
     from ._effects._inject import InjectedDrift as InjectedDrift

@@ -389,3 +389,25 @@ def test_bad_requests_get_clear_errors():
                                        muscle_ids=["a", "b"])
     with pytest.raises(ValueError, match="pressure_noise_kPa must be zero or positive"):
         pamid.SarosiProtocol(pressure_noise_kPa=-1.0)
+
+
+def test_an_effect_of_ones_own_subclasses_injected():
+    """The bench's effects share one base: a user's effect logs a column and adds a force;
+    an object that is not one is a TypeError saying what to subclass."""
+
+    from pamid._effects._inject import apply_effects
+
+    @dataclasses.dataclass(frozen=True)
+    class Hum(pamid.Injected):
+        def columns(self, ctx):
+            return {"humidity_pct": 40.0 + 0.0 * ctx["p_bar"]}
+
+        def force_N(self, ctx):
+            return 0.1 * ctx["humidity_pct"]
+
+    ctx = {"p_bar": np.array([1.0, 2.0])}
+    added, columns = apply_effects([Hum()], ctx, (2,))
+    np.testing.assert_allclose(added, 4.0)
+    assert list(columns) == ["humidity_pct"]
+    with pytest.raises(TypeError, match="subclass pamid.Injected"):
+        apply_effects([object()], {}, (2,))

@@ -76,8 +76,7 @@ def apply_effects(effects, ctx: dict, shape: tuple[int, ...]):
     for effect in effects:
         if not isinstance(effect, Injected):
             raise TypeError(f"{effect!r} is not an injected effect: subclass "
-                            "pamid._effects._inject.Injected (force_N, and columns if it "
-                            "logs any)")
+                            "pamid.Injected (force_N, and columns if it logs any)")
         for name, values in effect.columns(ctx).items():
             values = np.broadcast_to(values, shape)
             ctx[name] = values
