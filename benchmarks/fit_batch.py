@@ -12,7 +12,7 @@ What is measured (see benchmarks/README.md for a recorded run):
    force falls to 10 N): 300 samples per muscle. Generated once per N with fixed keys.
 2. Fit time for N = 1, 100, 1000, 10000:
    - pamid ``solve`` (the bare batched solve; for the Sárosi model the default solver is the
-     written-out Gauss–Newton of ``pamid/_fit/_gauss_newton.py``: a coarse variable-
+     written-out Gauss–Newton of ``pamid/_solvers/_sarosi.py``: a coarse variable-
      projection scan on a subsample of each muscle as start, then Gauss–Newton, Newton near
      the optimum),
    - pamid ``fit_least_squares`` (the public path: the same solve + statistics + Wald

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/profile_pieces.py [--n 1000] [--repeats 7]
 
 Times (median of warm calls, after one compiling call) at N muscles of virtual-bench data:
-the default Sárosi solve (``pamid/_fit/_gauss_newton.py``) and its parts, through the public
+the default Sárosi solve (``pamid/_solvers/_sarosi.py``) and its parts, through the public
 kernels of ``pamid.engine`` (the start; the start scanning every sample instead of a
 subsample, and without its parabolic refinement; the iterations, and one full pass over the
 samples as two iterations less one), the previous default (the 24-point variable-projection
@@ -56,7 +56,7 @@ SAROSI = get_model("sarosi")
 # Without its written-out kernels: solve() runs optimistix's Gauss–Newton (the previous
 # default), statistics() the Jacobian, QR and SVD per lane.
 SAROSI_GENERIC = dataclasses.replace(SAROSI, fast_path=None)
-# The variable-projection start's grid in s = a3·κ_span (pamid/_fit/_variable_projection.py).
+# The variable-projection start's grid in s = a3·κ_span (pamid/_solvers/_variable_projection.py).
 VP_GRID = np.concatenate([-np.geomspace(30.0, 0.05, 20), np.geomspace(0.05, 3.0, 4)])
 # Lanes per compiled call of the Sárosi kernels on the CPU (benchmarks/README.md, "Figures
 # that used to live in docstrings", (c)).

@@ -1,4 +1,4 @@
-"""How the settings of the Sárosi solver's start (``pamid/_fit/_gauss_newton.py``) trade speed
+"""How the settings of the Sárosi solver's start (``pamid/_solvers/_sarosi.py``) trade speed
 against reaching the optimum, on synthetic muscles harder than the benchmark's.
 
     .venv/bin/python benchmarks/start_robustness.py [--muscles 512]

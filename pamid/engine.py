@@ -68,17 +68,11 @@ from ._fit._correlated import (
     sandwich_intervals,
 )
 from ._fit._export_cache import use_disk_caches
-from ._fit._gauss_newton import sarosi_fast_start, sarosi_gauss_newton
 from ._fit._intervals import bootstrap as bootstrap_intervals
 from ._fit._intervals import profile as profile_intervals
 from ._fit._intervals import wald as wald_intervals
 from ._fit._least_squares import solve, statistics
 from ._fit._spec import ModelSpec, get_model, model_names
-from ._fit._variable_projection import (
-    sarosi_fit_at_a3,
-    sarosi_variable_projection,
-    sarosi_variable_projection_start,
-)
 from ._pooled._hierarchical import fit_hierarchical
 from ._pooled._hierarchical import predictive_interval as hierarchical_predictive
 from ._sampling._mcmc import (
@@ -91,6 +85,13 @@ from ._sampling._mcmc import (
     walker_log_prob,
 )
 from ._sampling._posterior import numpy_log_prob
+from ._solvers import (
+    sarosi_fast_start,
+    sarosi_fit_at_a3,
+    sarosi_gauss_newton,
+    sarosi_variable_projection,
+    sarosi_variable_projection_start,
+)
 
 __all__ = [
     # The model registry.

@@ -355,7 +355,7 @@ def test_evaluate_on_a_muscle_of_20000_rows(tmp_path):
 def test_start_subsample_of_a_long_muscle_is_a_gather_with_the_same_samples(monkeypatch):
     """One muscle of many samples: the start's subsample is gathered (a program of fixed
     size; one strided slice per stride made it grow with n) and equals the sliced one."""
-    from pamid._fit import _gauss_newton as gn
+    from pamid._solvers import _sarosi as gn
 
     n, n_sub = 3000, 64
     rng = np.random.default_rng(1)

@@ -1,10 +1,10 @@
-"""pamid's one Levenberg–Marquardt loop (pamid._fit._engine) against known answers."""
+"""pamid's one masked Levenberg–Marquardt loop (pamid._solvers) against known answers."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from pamid._fit._engine import CONVERGED, RESULT_NAMES, levenberg_marquardt
+from pamid._solvers import CONVERGED, RESULT_NAMES, levenberg_marquardt
 
 
 def _exponential(t, y):

@@ -1,4 +1,4 @@
-"""The written-out Gauss–Newton for Sárosi eq. 2.1 (``pamid/_fit/_gauss_newton.py``), the
+"""The written-out Gauss–Newton for Sárosi eq. 2.1 (``pamid/_solvers/_sarosi.py``), the
 default Sárosi solver, against known answers: noiseless data (the constants it was made
 from), SciPy's ``least_squares`` and optimistix's Gauss–Newton (the same optimum), a loop of
 single fits (the batch), and muscles whose data cannot determine the constants (flagged)."""
@@ -12,10 +12,10 @@ import scipy.optimize
 from sarosi_np import force_np, jacobian_np
 
 import pamid
-from pamid._fit import _gauss_newton as gn
 from pamid._fit._least_squares import _solve_batch, solve
 from pamid._fit._spec import SAROSI
-from pamid._fit._variable_projection import sarosi_variable_projection_start
+from pamid._solvers import _sarosi as gn
+from pamid._solvers import sarosi_variable_projection_start
 
 
 def design(n_per_pressure=30, pressures_bar=(1.0, 2.0, 3.0, 4.0, 5.0), kappa_max=25.0):

@@ -167,3 +167,26 @@ def test_every_runtime_dependency_is_used_by_the_package():
         name = re.match(r"[A-Za-z0-9_.-]+", requirement).group().lower()
         assert name.replace("-", "_") in imported or name in USED_THROUGH, name
     assert any(r.startswith("diffrax") for r in project["optional-dependencies"]["benchmarks"])
+
+
+def test_the_architecture_page_matches_the_tree():
+    """docs/architecture.md names every private package of the tree in its table, and every
+    file or folder of pamid it names exists (a moved module moves its line too)."""
+    import re
+
+    doc = (PACKAGE.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    folders = sorted(p.name for p in PACKAGE.iterdir()
+                     if p.is_dir() and p.name.startswith("_") and (p / "__init__.py").exists())
+    assert "_solvers" in folders
+    rows = [line for line in doc.splitlines() if line.startswith("| `pamid/")]
+    assert [f for f in folders if not any(f"`pamid/{f}/`" in r.split(" | ")[0] for r in rows)] == []
+    named = set(re.findall(r"pamid/[A-Za-z0-9_/]+(?:\.py)?", doc))
+    assert "pamid/_solvers/" in named
+    assert [p for p in sorted(named) if not (PACKAGE.parent / p).exists()] == []
+    # A module named bare in a package's row (`_sarosi.py`) is a file of that package (or a
+    # top-level module the row also holds, `_cli.py`).
+    for row in re.findall(r"^\| `pamid/(_[a-z]+)/`[^|]*\|(.*)$", doc, flags=re.M):
+        folder, text = row
+        missing = [m for m in re.findall(r"`(_[a-z_]+\.py)`", text)
+                   if not (PACKAGE / folder / m).exists() and not (PACKAGE / m).exists()]
+        assert missing == [], (folder, missing)

@@ -1,4 +1,4 @@
-"""Solvers are values (``pamid._fit._solvers``): a name and its object give the same fit, a
+"""Solvers are values (``pamid._solvers``): a name and its object give the same fit, a
 solver written by a user (one class) fits through the one entry, and names that are not
 solvers are refused with the list of those that are."""
 
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 import pamid
-from pamid._fit._solvers import (
+from pamid._solvers import (
     SOLVER_CLASSES,
     GaussNewton,
     LevenbergMarquardt,
     Solver,
-    _optimistix,
     as_solver,
+    optimistix_lanes,
 )
 
 
@@ -29,7 +29,7 @@ class Dogleg(Solver):
     def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
         import optimistix as optx
 
-        return _optimistix(optx.Dogleg(rtol=rtol, atol=atol), spec, theta0, x, y, w, max_steps)
+        return optimistix_lanes(optx.Dogleg(rtol=rtol, atol=atol), spec, theta0, x, y, w, max_steps)
 
 
 def test_names_and_objects_are_one_solver():
@@ -55,3 +55,23 @@ def test_a_users_solver_reaches_the_same_optimum(small_bench):
     assert fit.solver == "dogleg" and np.all(fit.converged)
     np.testing.assert_allclose(fit.theta, ref.theta, rtol=1e-6)
     np.testing.assert_allclose(fit.sse, ref.sse, rtol=1e-9)
+
+
+def test_every_fitting_loop_is_a_solvers():
+    """The iterative loops that fit constants live in ``pamid/_solvers/``, one per solver
+    class's file (issue 33): none in the fits, intervals, diagnosis, decays or pooled fits,
+    which pass solver values instead. (Simulators' ``lax.scan`` over time are not fits.)"""
+    import re
+    from pathlib import Path
+
+    root = Path(pamid.__file__).parent
+    loop = re.compile(r"lax\.(while_loop|fori_loop)\(")
+    for package in ("_fit", "_diagnose", "_decays", "_pooled", "_inference", "_sampling"):
+        found = [f"{p.relative_to(root)}:{i}" for p in sorted((root / package).rglob("*.py"))
+                 for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+                 if loop.search(line)]
+        assert found == [], found
+    owners = {p.name for p in (root / "_solvers").glob("*.py")
+              if loop.search(p.read_text(encoding="utf-8"))}
+    assert owners == {"_levenberg_marquardt.py", "_sarosi.py", "_variable_projection.py",
+                      "_profile.py"}

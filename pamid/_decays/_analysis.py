@@ -113,10 +113,10 @@ import numpy as np
 import scipy.linalg
 
 from .._errors import BenchDataError
-from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
 from .._inference import covariance, t_critical, unscaled_covariance, wald_interval
 from .._io import json_ready as _plain
 from .._sim._oscillator import DampedOscillator, oscillator_response
+from .._solvers import CONVERGED, levenberg_marquardt, linearised
 
 __all__ = [
     "MIN_TRAVEL_NOISE",

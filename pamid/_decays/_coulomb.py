@@ -78,9 +78,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._effects._definitions import DECAY_EFFECTS as _EFFECT_DEFINITIONS
-from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
 from .._inference import covariance, wald_interval
 from .._sim._oscillator import cos_sinc
+from .._solvers import CONVERGED, levenberg_marquardt, linearised
 from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
 
 __all__ = [
@@ -226,7 +226,7 @@ def coulomb_response(
 @functools.partial(jax.jit, static_argnames=("n_half", "max_steps"))
 def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
     """One Levenberg–Marquardt solve per lane, by pamid's one masked loop
-    (:func:`pamid._fit._engine.levenberg_marquardt`).
+    (:func:`pamid._solvers.levenberg_marquardt`).
 
     Stops when the Gauss–Newton step would lower the SSE by less than ``rtol`` of itself
     plus (:data:`ATOL_RAD`)² per sample (the second term for data the model fits exactly):

@@ -38,10 +38,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._fit._engine import CONVERGED, levenberg_marquardt, linearised
 from .._inference import standard_errors, wald_interval
 from .._sim._joint_sim import JointArm, arm_rhs, sealed_pressure_laws
 from .._sim._oscillator import rk4_scan
+from .._solvers import CONVERGED, levenberg_marquardt, linearised
 
 __all__ = ["JOINT_FIT_NAMES", "JointDecayFit", "fit_joint_decays"]
 
@@ -181,7 +181,7 @@ def fit_joint_decays(
             a finite difference over the first 5 samples, scale 1, offset 0.
         method: ``"gauss_newton"`` (default: undamped steps while they lower the SSE) or
             ``"levenberg_marquardt"`` (damped from the start); both are pamid's one loop,
-            :func:`pamid._fit._engine.levenberg_marquardt`.
+            :func:`pamid._solvers.levenberg_marquardt`.
         substeps: RK4 steps per sample interval.
         rtol, atol, max_steps: stop when a Gauss–Newton step would lower the SSE by at
             most ``rtol`` of itself plus ``atol``² per sample, or after ``max_steps``.

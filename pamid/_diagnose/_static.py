@@ -63,24 +63,24 @@ from .._effects._definitions import (
 from .._fit import _export_cache
 from .._fit._api import fit_least_squares
 from .._fit._batch import map_lanes, pack
-from .._fit._engine import (
+from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
+from .._fit._sharding import lane_devices
+from .._fit._spec import ModelSpec, builtin_key
+from .._inference import residual_variance, unscaled_covariance, wald_interval
+from .._solvers import (
     CONVERGED,
     MAX_STEPS,
     levenberg_marquardt,
     newton_decrement,
     restrict,
 )
-from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
-from .._fit._sharding import lane_devices
-from .._fit._spec import ModelSpec, builtin_key
-from .._inference import residual_variance, unscaled_covariance, wald_interval
 from .._units import KPA_PER_BAR
 from ._residual import autocorrelation_time, legendre_basis, scaled
 from ._select import SetFit
 
 N_FOLDS = 5
 MAX_ITER = 60
-#: Stopping test of the refits (:func:`pamid._fit._engine.levenberg_marquardt`): the
+#: Stopping test of the refits (:func:`pamid._solvers.levenberg_marquardt`): the
 #: Gauss–Newton step would lower the SSE by at most RTOL of itself plus ATOL_N² per sample.
 RTOL = 1e-11
 ATOL_N = 1e-9

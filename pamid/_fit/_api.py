@@ -10,10 +10,10 @@ import pandas as pd
 
 from .._data._bench import BenchData
 from .._inference import scale_covariance
+from .._solvers import as_solver
 from . import _correlated, _intervals
 from ._batch import FitData, pack_rows
 from ._least_squares import DEFAULT_STARTS, bounds_arrays, first_solve, fit_lanes, statistics
-from ._solvers import as_solver
 from ._spec import ModelSpec, get_model
 
 INTERVAL_KINDS = ("wald", "profile", "bootstrap", "cluster", "hac")
@@ -433,10 +433,10 @@ def fit_least_squares(
         model: "sarosi" (Sárosi eq. 2.1), "cullinan" (Cullinan eq. 3: A–E from static
             data, and G too when the data carry ``velocity_mm_s``), or a ModelSpec.
         solver: "gauss-newton" (default; for the Sárosi model the written-out batched
-            Gauss–Newton of ``_gauss_newton.py`` with its own start, otherwise
+            Gauss–Newton of ``pamid/_solvers/_sarosi.py`` with its own start, otherwise
             optimistix's), "levenberg-marquardt", "variable-projection",
-            "jaxopt-levenberg-marquardt", or a solver object of ``pamid._fit._solvers``
-            (solvers are values: :class:`~pamid._fit._solvers.Solver`).
+            "jaxopt-levenberg-marquardt", or a solver object of ``pamid._solvers``
+            (solvers are values: :class:`~pamid._solvers.Solver`).
         intervals: any of "wald" (always computed), "profile", "bootstrap", "cluster"
             (cluster-robust CR3 by curve, t on G − 1: holds under residuals correlated
             within curves) and "hac" (Newey–West within trials); see ``_correlated.py``.

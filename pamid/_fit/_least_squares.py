@@ -1,14 +1,14 @@
 """Batched least squares: every muscle of a batch fitted in one jit-compiled, vmapped solve.
 
 Solver path (measured in ``benchmarks/fit_batch.py``): for the Sárosi model, "gauss-newton"
-is the written-out batched Gauss–Newton of ``_gauss_newton.py`` (its own coarse variable-
+is the written-out batched Gauss–Newton of ``pamid/_solvers/_sarosi.py`` (its own coarse variable-
 projection start, one loop over the samples per iteration); for other models it is
 optimistix's, from the model's start. Under a batched loop every lane runs until the slowest
 converges, so what matters for the batch is that no lane needs many steps; from a
 variable-projection start none does. Levenberg–Marquardt and jaxopt's Levenberg–Marquardt
 (from the 24-point variable-projection start) and pure variable projection are available
 for comparison; fits with bounds on the constants run pamid's one Levenberg–Marquardt
-loop with projected bounds (``_engine.py``).
+loop with projected bounds (``pamid/_solvers/_levenberg_marquardt.py``).
 
 :func:`fit_lanes` (what ``fit_least_squares`` runs) adds several starts and physical
 bounds around :func:`solve`: the top start candidates of a model as extra lanes of one
@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import unscaled_covariance
+from .._solvers import SOLVER_CLASSES, Solver, as_solver, residuals  # noqa: F401
 from ._batch import FitData, map_lanes, padded_rows
-from ._solvers import SOLVER_CLASSES, Solver, as_solver, residuals  # noqa: F401
 from ._spec import ModelSpec, builtin_key
 
 #: The solvers' names (``--solver``); the solvers themselves are values (``_solvers``).
@@ -46,10 +46,10 @@ def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
 def _solve_in_bounds(spec, theta0, x, y, w, lower, upper, max_steps):
     """Every lane fitted within the box [``lower``, ``upper``] from ``theta0`` clipped into
     it, by pamid's one masked loop with projected bounds
-    (:func:`pamid._fit._engine.levenberg_marquardt`): a constant on a bound whose gradient
+    (:func:`pamid._solvers.levenberg_marquardt`): a constant on a bound whose gradient
     points out of the box is held there, one whose gradient points back in is free again,
     so a converged lane is a constrained optimum (Karush–Kuhn–Tucker)."""
-    from ._engine import CONVERGED, levenberg_marquardt, linearised
+    from .._solvers import CONVERGED, levenberg_marquardt, linearised
 
     def one(theta0, x, y, w):
         p0 = jnp.clip(theta0, lower, upper)

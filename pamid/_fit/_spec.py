@@ -289,8 +289,12 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
 
 
 def _sarosi_fast_path() -> FastPath:
-    from ._gauss_newton import sarosi_derivatives, sarosi_gauss_newton, sarosi_statistics
-    from ._variable_projection import sarosi_variable_projection
+    from .._solvers import (
+        sarosi_derivatives,
+        sarosi_gauss_newton,
+        sarosi_statistics,
+        sarosi_variable_projection,
+    )
 
     return FastPath(gauss_newton=sarosi_gauss_newton,
                     statistics=sarosi_statistics, statistics_take_curve=True,
@@ -299,7 +303,7 @@ def _sarosi_fast_path() -> FastPath:
 
 
 def _sarosi_start(x, y, w):
-    from ._variable_projection import sarosi_variable_projection_start
+    from .._solvers import sarosi_variable_projection_start
 
     return sarosi_variable_projection_start(x, y, w)
 

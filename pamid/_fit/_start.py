@@ -124,7 +124,7 @@ def trial_values(defaults, lower, upper, nonlinear: np.ndarray) -> np.ndarray:
 
 #: Smallest Cholesky pivot of a trial's equilibrated normal matrix (unit diagonal) for which
 #: the start solves the linear constants from the normal equations, written out
-#: (:func:`pamid._fit._variable_projection._small_cholesky_solve`), then refined once with the
+#: (:func:`pamid._solvers.small_cholesky_solve`), then refined once with the
 #: residual of the design itself (corrected semi-normal equations, Björck 1996, §2.8.4): the
 #: error of the normal equations alone, about 1e-16 / pivot, is squared away. Where a lane
 #: of a batch has a smaller pivot (dependent columns, a constant the data do not see), the
@@ -139,7 +139,7 @@ UNROLLED_CHOLESKY_MAX = 8
 
 def _lapack_cholesky_solve(gram, c):
     """``(z, smallest pivot)`` of gram·z = c over a batch (…, n, n), as
-    :func:`pamid._fit._variable_projection._small_cholesky_solve` gives them, by LAPACK. A
+    :func:`pamid._solvers.small_cholesky_solve` gives them, by LAPACK. A
     matrix that is not positive definite (NaN factor) gets the pivot −inf, so that the
     caller falls back to the SVD."""
     low = jnp.linalg.cholesky(gram)
@@ -166,7 +166,7 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
     "Figures that used to live in docstrings", (g)). A
     batch with a nearly singular design (:data:`CHOLESKY_PIVOT`) is solved by the SVD,
     which tolerates a rank-deficient design (a constant the data do not see stays at 0)."""
-    from ._variable_projection import _small_cholesky_solve
+    from .._solvers import small_cholesky_solve
 
     # NumPy constants, not JAX arrays: the spec keeps this function, and it may first be
     # made while a caller is being traced (a JAX array made then would be a tracer that
@@ -199,7 +199,7 @@ def projected_candidates(predict, linear: np.ndarray, trials: np.ndarray, lower,
     def cholesky(gram, c):
         if n_lin > UNROLLED_CHOLESKY_MAX:
             return _lapack_cholesky_solve(gram, c)
-        return jax.vmap(jax.vmap(lambda g, c: _small_cholesky_solve(g, c, with_pivot=True)))(
+        return jax.vmap(jax.vmap(lambda g, c: small_cholesky_solve(g, c, with_pivot=True)))(
             gram, c)
 
     def each(fn, trial_axis, *static):

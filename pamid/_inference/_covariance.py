@@ -10,7 +10,7 @@ rounding noise would look like a finding). Constants held fixed (``free`` 0) hav
 variance: their rows and columns are 0.
 
 Every fit goes through here or through Sárosi's written-out statistics
-(``pamid._fit._gauss_newton.sarosi_statistics``, the solver's own Cholesky of the same
+(``pamid._solvers._sarosi.sarosi_statistics``, the solver's own Cholesky of the same
 equilibrated normal matrix, with the same criterion on its pivots); the sandwich
 covariances (``pamid._fit._correlated``) take their bread A⁻¹ from here.
 """

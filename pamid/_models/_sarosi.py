@@ -35,7 +35,7 @@ class Sarosi(ForceModel):
 
     A small pytree: every field may carry leading batch dimensions (one set per muscle),
     and every function below works on it under ``jit``, ``vmap`` and ``grad``. Fitted by its
-    registered written-out kernels (``pamid._fit._gauss_newton``), with its own start.
+    registered written-out kernels (``pamid._solvers._sarosi``), with its own start.
     """
 
     a1: Float[Array, "..."]

@@ -1,4 +1,6 @@
-"""pamid's one masked Levenberg–Marquardt loop, for one lane; batched by ``jax.vmap``.
+"""Levenberg–Marquardt: pamid's one masked loop with projected bounds, for one lane (batched
+by ``jax.vmap``), and the solver value :class:`LevenbergMarquardt` (``--solver
+levenberg-marquardt``), which is optimistix's for unbounded fits.
 
 Every least-squares problem that pamid solves with its own loop goes through
 :func:`levenberg_marquardt`: the diagnosis refits (a model plus candidate effects, some
@@ -6,9 +8,9 @@ constants held by a mask so that every effect set of a batch has the same shape)
 free-decay trajectory fits (linear, :mod:`pamid._decays._analysis`; with friction,
 :mod:`pamid._decays._coulomb`) and the joint's decay fits
 (:mod:`pamid._decays._joint_fit`), and the static fits within bounds
-(``_least_squares._solve_in_bounds``). Static force laws without bounds are solved by
-optimistix or jaxopt (``_least_squares``, where the solver is the user's choice), or by a
-model's registered written-out kernels (Sárosi's Gauss–Newton).
+(``pamid._fit._least_squares._solve_in_bounds``). Static force laws without bounds are
+solved by the solver value the user chose (:mod:`pamid._solvers`): optimistix's, jaxopt's,
+or a model's registered written-out kernels (Sárosi's Gauss–Newton).
 
 The method: Levenberg–Marquardt with Marquardt's scaling (the damping proportional to the
 diagonal of JᵀJ) and Nielsen's damping update (H. B. Nielsen, "Damping parameter in
@@ -34,10 +36,12 @@ were held on a bound there.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
+
+from ._base import Solver, optimistix_lanes
 
 #: Result codes, the same names as ``FitResult.status``.
 CONVERGED, MAX_STEPS, NONFINITE, STALLED = 0, 1, 2, 3
@@ -180,3 +184,17 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
         jnp.where(small(g, h, sse), CONVERGED, jnp.where(lam > MAX_DAMPING, STALLED, MAX_STEPS)))
     return Solution(p, r, jac, sse, result, k, free)
 
+
+
+class LevenbergMarquardt(Solver):
+    """optimistix's ``LevenbergMarquardt(rtol, atol)`` (a fit within bounds runs
+    :func:`levenberg_marquardt` above, whatever the solver)."""
+
+    name: ClassVar[str] = "levenberg-marquardt"
+    restarts: ClassVar[bool] = True
+
+    def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
+        import optimistix as optx
+
+        return optimistix_lanes(optx.LevenbergMarquardt(rtol=rtol, atol=atol), spec, theta0,
+                                x, y, w, max_steps)

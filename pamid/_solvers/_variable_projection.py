@@ -15,10 +15,13 @@ adapts to the data: s from −30 (the exponential has died out within the first 
 from __future__ import annotations
 
 import functools
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from ._base import Solver
 
 # NumPy, not jnp: a jnp constant would start the JAX backend at import (benchmarks/README.md,
 # "Figures that used to live in docstrings", (h)).
@@ -57,7 +60,7 @@ def _linear_solve(a3, p, k, y, w, accurate=True):
             [jnp.stack([upper[min(i, j), max(i, j)] for j in range(5)]) for i in range(5)]
         ) / jnp.outer(scale, scale)
         rhs = jnp.stack([jnp.sum(c * y) for c in cols]) / scale
-        z = _small_cholesky_solve(gram + 1e-13 * jnp.eye(5), rhs)
+        z = small_cholesky_solve(gram + 1e-13 * jnp.eye(5), rhs)
         # S = yᵀWy − zᵀ·rhs: no second pass over the samples; the cancellation costs a few
         # digits of S, harmless for ranking grid points.
         sse = jnp.sum(w * y * y) - jnp.dot(z, rhs)
@@ -79,7 +82,7 @@ def sarosi_fit_at_a3(a3, p, k, y, w, *, accurate: bool = True):
     return _linear_solve(a3, p, k, y, w, accurate=accurate)
 
 
-def _small_cholesky_solve(a, b, with_pivot=False):
+def small_cholesky_solve(a, b, with_pivot=False):
     """Solve a·z = b for a small symmetric positive definite ``a``, unrolled.
 
     Batched LAPACK calls on 5×5 matrices cost microseconds each on the CPU; written out as
@@ -187,3 +190,24 @@ def sarosi_variable_projection(x, y, w, n_refine: int = 40, accurate: bool = Tru
 def sarosi_variable_projection_start(x, y, w):
     """Start values for the batched solvers: a short variable-projection solve."""
     return sarosi_variable_projection(x, y, w, n_refine=6, accurate=False)[0]
+
+
+class VariableProjection(Solver):
+    """Variable projection (Golub & Pereyra 1973) for a model with one nonlinear constant:
+    its registered profile search (Sárosi eq. 2.1 over a3, :func:`sarosi_variable_projection`
+    above); ``max_steps`` refinement steps of the bracket, converged where it has shrunk to
+    ``rtol`` (at least 1e-8)."""
+
+    name: ClassVar[str] = "variable-projection"
+
+    def check(self, spec):
+        fast = spec.fast_path
+        if fast is None or fast.variable_projection is None:
+            raise ValueError(f"variable projection is written out for the Sárosi model only, "
+                             f"not for {spec.name}; use the gauss-newton or "
+                             "levenberg-marquardt solver")
+
+    def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
+        theta, _, width = spec.fast_path.variable_projection(x, y, w, n_refine=max_steps)
+        ok = jnp.all(jnp.isfinite(theta), axis=-1) & (width < jnp.maximum(rtol, 1e-8))
+        return theta, ok, jnp.full(theta.shape[0], max_steps)

@@ -46,7 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import RANK_PIVOT  # the one rank criterion (``pamid._inference``)
-from ._variable_projection import _parabolic_trial, _shrink_bracket, _small_cholesky_solve
+from ._variable_projection import _parabolic_trial, _shrink_bracket, small_cholesky_solve
 
 #: Largest subsample of a muscle scanned for the start (evenly spaced over its samples).
 START_SAMPLES = 64
@@ -106,7 +106,7 @@ def _reduce_samples(sums, maxima=()):
     return jax.lax.reduce(ops, init, combine, (ops[0].ndim - 1,))
 
 
-def _solve_scaled(mat, rhs, ridge, with_pivot=False):
+def solve_scaled(mat, rhs, ridge, with_pivot=False):
     """Solve mat·z = rhs per lane, mat (..., q, q) symmetric positive semi-definite: scaled to
     unit diagonal, with ``ridge`` added to the diagonal, by an unrolled Cholesky. ``rhs`` is
     (..., q), or (..., q, k) for k right-hand sides at once (one factorisation).
@@ -118,7 +118,7 @@ def _solve_scaled(mat, rhs, ridge, with_pivot=False):
     d_rhs = d if rhs.ndim == mat.ndim - 1 else d[..., None]
     flat_a = scaled.reshape(-1, *scaled.shape[-2:])
     flat_b = (rhs / d_rhs).reshape(-1, *rhs.shape[len(batch):])
-    z, pivot = jax.vmap(lambda a, b: _small_cholesky_solve(a, b, with_pivot=True))(flat_a, flat_b)
+    z, pivot = jax.vmap(lambda a, b: small_cholesky_solve(a, b, with_pivot=True))(flat_a, flat_b)
     z = z.reshape(rhs.shape) / d_rhs
     return (z, pivot.reshape(batch)) if with_pivot else z
 
@@ -237,7 +237,7 @@ def _profile(a3, k, mono, fixed):
     rhs = jnp.concatenate(
         [jnp.stack([pe_y, e_y], -1), jnp.broadcast_to(b_fix[:, None], (*a3.shape, 3))], -1
     )
-    beta = _solve_scaled(gram, rhs, 1e-13)
+    beta = solve_scaled(gram, rhs, 1e-13)
     sse = yy[:, None] - jnp.sum(beta * rhs, -1)
     return beta, jnp.where(jnp.isfinite(sse), sse, jnp.inf)
 
@@ -464,10 +464,10 @@ def sarosi_gauss_newton(
         tiny = jnp.max(jnp.abs(step) / (atol + STALL_STEP * jnp.abs(theta)), axis=-1) < 1
         done = done | (active & has_prev & ~worse & (stall >= STALL_PASSES) & tiny)
         jtj = _jtj(varying, fixed)
-        new_step = -_solve_scaled(jtj, jtr, 1e-14)
+        new_step = -solve_scaled(jtj, jtr, 1e-14)
         if newton > 0:
             hess = _hessian(jtj, second)
-            n_step, pivot = _solve_scaled(hess, jtr, 1e-14, with_pivot=True)
+            n_step, pivot = solve_scaled(hess, jtr, 1e-14, with_pivot=True)
             rel = jnp.max(jnp.abs(step) / jnp.maximum(jnp.abs(theta), 1e-300), axis=-1)
             near = has_prev & (rel < newton)
             new_step = jnp.where(((pivot > 0) & near)[:, None], -n_step, new_step)
@@ -544,7 +544,7 @@ def sarosi_statistics(theta, x, y, w, curve=None):
     n = fixed[-1]
     jtj = _jtj(varying, fixed)
     eye = jnp.broadcast_to(jnp.eye(6, dtype=theta.dtype), jtj.shape)
-    inv, pivot = _solve_scaled(jtj, eye, 0.0, with_pivot=True)
+    inv, pivot = solve_scaled(jtj, eye, 0.0, with_pivot=True)
     full_rank = pivot > RANK_PIVOT
     inv = jnp.where(full_rank[:, None, None], 0.5 * (inv + jnp.swapaxes(inv, -1, -2)), jnp.inf)
     lin = jnp.stack([theta[:, 0], theta[:, 1], theta[:, 3], theta[:, 4], theta[:, 5]], -1)
