@@ -21,7 +21,7 @@ fitted by least squares over the warm runs: MB per 1000 rows, and the log-log ex
 10,000 rows up (1 = linear).
 
 Run it from a tree nobody edits meanwhile: the exported programs' key hashes pamid's sources
-(``pamid._fit._export_cache``), so an edit between the cold and the warm run makes the warm
+(``pamid._lanes._export_cache``), so an edit between the cold and the warm run makes the warm
 one trace again.
 """
 

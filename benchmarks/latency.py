@@ -9,7 +9,7 @@ runs from a byte-compiled snapshot of its source tree (as ``end_to_end.py`` does
 compilation cache of the benchmark's own. For each size n, two new one-muscle files are
 drawn from a virtual bench of Sárosi Table 3-1's muscle (the bundled data set's protocol,
 rows thinned at random, in order): A of n rows and B of about 0.93·n rows, the same size
-class (``pamid._fit._batch.padded_rows``) but another row count. Per command:
+class (``pamid._lanes._batch.padded_rows``) but another row count. Per command:
 
 - **empty cache**: the command on A with a cache that holds nothing (the first run after
   installing without `pamid warm-up`);

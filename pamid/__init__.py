@@ -29,7 +29,7 @@ import warnings
 from typing import TYPE_CHECKING
 
 # float64 on, without importing JAX here: the command line reads its data file while JAX
-# starts on another thread (pamid._fit._export_cache.prepare_in_background). JAX imported
+# starts on another thread (pamid._lanes._export_cache.prepare_in_background). JAX imported
 # before pamid gets the setting now; otherwise JAX reads it from this process' environment
 # when it is first imported (and child processes inherit it).
 if "jax" in sys.modules:
@@ -63,11 +63,11 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "FitResult": ("._fit._api", "FitResult"),
     "bench_to_fit_data": ("._fit._api", "bench_to_fit_data"),
     "fit_least_squares": ("._fit._api", "fit_least_squares"),
-    "FitData": ("._fit._batch", "FitData"),
-    "pack_muscles": ("._fit._batch", "pack"),
+    "FitData": ("._lanes._batch", "FitData"),
+    "pack_muscles": ("._lanes._batch", "pack"),
     "Comparison": ("._fit._compare", "Comparison"),
     "compare_models": ("._fit._compare", "compare_models"),
-    "use_devices": ("._fit._sharding", "use_devices"),
+    "use_devices": ("._lanes._sharding", "use_devices"),
     # Posterior sampling, and the ensemble kernel with its moves.
     "McmcBudgetWarning": ("._sampling._mcmc", "McmcBudgetWarning"),
     "McmcResult": ("._sampling._mcmc", "McmcResult"),
@@ -246,7 +246,7 @@ _MOVED: dict[str, str] = {
     "moment_of_inertia_eq12": "pamid.cullinan",
     "gravity_moment_Nm": "pamid.cullinan",
     "joint_arm_torque_Nm": "pamid.cullinan",
-    "lane_devices": "pamid._fit._sharding",
+    "lane_devices": "pamid._lanes._sharding",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -333,13 +333,13 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._fit._api import FitResult as FitResult
     from ._fit._api import bench_to_fit_data as bench_to_fit_data
     from ._fit._api import fit_least_squares as fit_least_squares
-    from ._fit._batch import FitData as FitData
-    from ._fit._batch import pack as pack_muscles
     from ._fit._compare import Comparison as Comparison
     from ._fit._compare import compare_models as compare_models
-    from ._fit._sharding import use_devices as use_devices
     from ._fit._spec import ModelDefinitionError as ModelDefinitionError
     from ._fit._spec import register_model as register_model
+    from ._lanes._batch import FitData as FitData
+    from ._lanes._batch import pack as pack_muscles
+    from ._lanes._sharding import use_devices as use_devices
     from ._models._bolen import Bolen2026 as Bolen2026
     from ._models._cullinan import Cullinan as Cullinan
     from ._models._protocol import ForceModel as ForceModel

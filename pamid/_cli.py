@@ -29,9 +29,9 @@ _INPUT_ARGUMENTS = ("data", "decay", "model_json", "fit")
 
 def _enable_compilation_cache():
     """Switch on the compilation cache and the exported programs for this command
-    (:func:`pamid._fit._export_cache.use_disk_caches`, ``PAMID_CACHE_DIR``); returns the
+    (:func:`pamid._lanes._export_cache.use_disk_caches`, ``PAMID_CACHE_DIR``); returns the
     function that puts the caller's settings back."""
-    from ._fit._export_cache import use_disk_caches
+    from ._lanes._export_cache import use_disk_caches
 
     return use_disk_caches()
 
@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     from . import _io
     from ._commands import failure
     from ._errors import BenchDataError, UntrustedResultError
-    from ._fit import _export_cache
+    from ._lanes import _export_cache
 
     exporting = _export_cache.directory()
     signals = failure.catch_signals()

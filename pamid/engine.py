@@ -56,7 +56,6 @@ JAX arrays), and check less than the workflows do. ::
 from ._data._curves import Curves, find_curves
 from ._diagnose._static import MAX_ITER as DIAGNOSIS_MAX_STEPS
 from ._diagnose._static import StaticProblem as StaticDiagnosisProblem
-from ._fit._batch import padded_rows
 from ._fit._correlated import (
     CLUSTER_KINDS,
     ar1_noise,
@@ -67,12 +66,13 @@ from ._fit._correlated import (
     lag1_autocorrelation,
     sandwich_intervals,
 )
-from ._fit._export_cache import use_disk_caches
 from ._fit._intervals import bootstrap as bootstrap_intervals
 from ._fit._intervals import profile as profile_intervals
 from ._fit._intervals import wald as wald_intervals
 from ._fit._least_squares import solve, statistics
 from ._fit._spec import ModelSpec, get_model, model_names
+from ._lanes._batch import padded_rows
+from ._lanes._export_cache import use_disk_caches
 from ._pooled._hierarchical import fit_hierarchical
 from ._pooled._hierarchical import predictive_interval as hierarchical_predictive
 from ._sampling._mcmc import (

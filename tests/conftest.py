@@ -176,11 +176,11 @@ def _compilation_cache_of_the_run(tmp_path_factory):
 def _programs_below_the_region_limit():
     """After each test file: a worker that nears the system's limit on memory regions
     (``vm.max_map_count``) drops its compiled programs, as pamid's own lanes do
-    (``pamid/_fit/_programs.py``). Each test worker compiles thousands of programs, about
+    (``pamid/_lanes/_programs.py``). Each test worker compiles thousands of programs, about
     3.4 regions each; at 96 % of the suite one crossed 65,530 regions and died of a
     segmentation fault inside XLA, and the run then hung (CI, 2026-11-27)."""
     yield
-    from pamid._fit._programs import release_if_crowded
+    from pamid._lanes._programs import release_if_crowded
 
     release_if_crowded(force_look=True)
 

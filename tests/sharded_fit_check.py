@@ -20,10 +20,10 @@ import jax
 import numpy as np
 
 import pamid
-from pamid._fit import _batch
 from pamid._fit._least_squares import _statistics, solve
-from pamid._fit._sharding import lane_devices, use_devices
 from pamid._fit._spec import SAROSI
+from pamid._lanes import _batch
+from pamid._lanes._sharding import lane_devices, use_devices
 
 N_MUSCLES = 37
 
@@ -170,7 +170,7 @@ def main(full=False):
 
 def _sharded_args(data, theta):
     """(theta, x, y, w) padded to 38 lanes and split over the devices as map_lanes does."""
-    from pamid._fit._sharding import lane_sharding
+    from pamid._lanes._sharding import lane_sharding
 
     sharding = lane_sharding(lane_devices())
     idx = np.minimum(np.arange(38), N_MUSCLES - 1)

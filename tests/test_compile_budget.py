@@ -1,7 +1,7 @@
 """The compile budget of the commands a lab runs on its next file (counted, never timed).
 
 A new bench file of another row count packs to the size class of an earlier file of nearby
-length (``pamid._fit._batch.padded_rows``), so the programs compiled and kept on disk for
+length (``pamid._lanes._batch.padded_rows``), so the programs compiled and kept on disk for
 the earlier one serve it: `pamid fit`, `compare` and `diagnose` on the second file compile
 nothing. Counted with JAX's own word for each program it had to compile
 (``JAX_EXPLAIN_CACHE_MISSES``: "PERSISTENT COMPILATION CACHE MISS"), in commands that run
@@ -17,7 +17,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pamid._fit._batch import padded_lanes, padded_rows
+from pamid._lanes._batch import padded_lanes, padded_rows
 
 BUNDLED = Path(__file__).resolve().parents[1] / "pamid" / "data" / "sarosi_dmsp20_400_virtual.csv"
 MISS = re.compile(r"PERSISTENT COMPILATION CACHE MISS for '([^']+)'")

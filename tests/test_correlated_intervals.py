@@ -20,7 +20,7 @@ import scipy.linalg
 import pamid
 from pamid._fit import _correlated
 from pamid._fit._api import bench_to_fit_data, fit_least_squares
-from pamid._fit._batch import FitData
+from pamid._lanes._batch import FitData
 from pamid._models._sarosi import table_3_1
 from pamid.report import fit_json
 

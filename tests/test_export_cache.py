@@ -1,4 +1,4 @@
-"""The on-disk cache of exported programs (``pamid/_fit/_export_cache.py``) that lets the
+"""The on-disk cache of exported programs (``pamid/_lanes/_export_cache.py``) that lets the
 command line skip tracing: same answers as tracing, entries per input shape, a clean
 fallback for what cannot be exported."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import pamid
-from pamid._fit import _export_cache
+from pamid._lanes import _export_cache
 
 
 @pytest.fixture
@@ -102,9 +102,9 @@ def test_the_fit_s_programs_are_loaded_before_its_data_are_packed(small_bench, c
     the fit then runs (the fit loads none after it), whether the fit's muscles go in one
     call or (a file of more muscles than a call takes) in several; and it compiles nothing:
     with nothing on disk it stops and writes no entry."""
-    from pamid._fit import _batch
     from pamid._fit._api import prepare_fit
     from pamid._fit._spec import SAROSI
+    from pamid._lanes import _batch
 
     if chunk is not None:
         monkeypatch.setattr(_batch, "CPU_CHUNK_LANES", chunk)
@@ -126,7 +126,7 @@ def test_the_fit_s_programs_are_loaded_before_its_data_are_packed(small_bench, c
 
 
 def test_cached_only_runs_what_is_on_disk_and_compiles_nothing(cache_dir, monkeypatch):
-    from pamid._fit._batch import map_lanes
+    from pamid._lanes._batch import map_lanes
 
     fn = lambda a: a * 5.0  # noqa: E731
     a = np.arange(4.0)

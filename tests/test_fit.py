@@ -499,7 +499,7 @@ def test_fit_data_is_a_batch_of_jax_arrays(small_bench):
 
 def test_chunked_lanes_equal_one_call(small_bench, monkeypatch):
     """Large batches are processed in chunks of lanes (memory); the answers do not change."""
-    import pamid._fit._batch as batch
+    import pamid._lanes._batch as batch
 
     whole = pamid.fit_least_squares(small_bench.data, intervals=("wald", "profile"))
     # 3 muscles: lanes 0-1, then lanes 1-2 (on the CPU) or lane 2 padded (elsewhere).
@@ -516,7 +516,7 @@ def test_chunks_on_worker_threads_equal_chunks_in_turn(monkeypatch):
     """On the CPU the chunks of a batch run on one thread per core; the lanes come back
     in order and equal a run of the same chunks one after another, also on a device picked
     with ``use_devices`` (a per-thread setting that the workers must be given)."""
-    import pamid._fit._batch as batch
+    import pamid._lanes._batch as batch
 
     calls = []
 

@@ -21,7 +21,7 @@ import scipy.stats
 import pamid
 from pamid._data._curves import find_curves
 from pamid._fit._api import bench_to_fit_data
-from pamid._fit._batch import pack_rows
+from pamid._lanes._batch import pack_rows
 
 # ----------------------------------------------------------------------------------------
 # Reference: the per-muscle packer and curve ids (one muscle at a time)

@@ -16,10 +16,10 @@ import pytest
 from sarosi_np import force_np
 
 from pamid._fit._api import STATUSES, _statuses, fit_least_squares
-from pamid._fit._batch import pack
 from pamid._fit._least_squares import _take_lanes, fit_lanes, solve, statistics
 from pamid._fit._spec import SAROSI
 from pamid._inference import RANK_RTOL, null_direction, undetermined
+from pamid._lanes._batch import pack
 from pamid.report import fit_json
 
 PRESSURES_BAR = np.linspace(1.0, 6.0, 26)

@@ -1,5 +1,5 @@
 """Compiled programs are dropped before the process runs out of memory regions
-(``pamid/_fit/_programs.py``): on Linux a process may map ``vm.max_map_count`` regions,
+(``pamid/_lanes/_programs.py``): on Linux a process may map ``vm.max_map_count`` regions,
 and every program XLA compiles for the CPU takes a few."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pamid._fit import _programs
-from pamid._fit._batch import map_lanes
+from pamid._lanes import _programs
+from pamid._lanes._batch import map_lanes
 
 linux = pytest.mark.skipif(_programs.region_limit() is None,
                            reason="the system does not report its region limit")

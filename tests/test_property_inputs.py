@@ -19,7 +19,7 @@ never two muscles). Decay tables: 0, 1 or 120 rows, spoiled the older way (names
 renamed, columns added, dropped or repeated, cells replaced). Every table is written with
 any of the delimiters and decimal marks pamid reads, quoted or not, with CRLF or a BOM.
 Up to 64 rows per muscle and one or two muscles pack to few size classes
-(``pamid._fit._batch.padded_rows``), so JAX compiles each model a few times (the CLI is run
+(``pamid._lanes._batch.padded_rows``), so JAX compiles each model a few times (the CLI is run
 in this process). ``derandomize=True``: every run draws the same examples.
 """
 

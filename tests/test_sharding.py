@@ -21,8 +21,8 @@ import pandas as pd
 import pytest
 
 import pamid
-from pamid._fit import _batch
-from pamid._fit._sharding import lane_devices, lanes_per_call, use_devices
+from pamid._lanes import _batch
+from pamid._lanes._sharding import lane_devices, lanes_per_call, use_devices
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -24,8 +24,8 @@ def run(args) -> int:
 
     from .._data._bench import load_bench
     from .._fit._api import fit_least_squares
-    from .._fit._batch import pack
     from .._io import final_place, write_text_atomic
+    from .._lanes._batch import pack
     from .._models._hysteresis import hysteresis_damping
     from .._models._sarosi import TABLE_3_1, TABLE_3_1_L0_MM, Sarosi, table_3_1_fit_json
     from .._units import KPA_PER_BAR

@@ -164,7 +164,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     startup = getattr(args, "startup", None)  # main's: JAX starts and the checks run there
     if startup is None:
-        from .._fit import _export_cache
+        from .._lanes import _export_cache
 
         startup = _export_cache.prepare_in_background(then=lambda: prepare(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())

@@ -6,7 +6,7 @@ The file is read a chunk of about ``--chunk-rows`` rows at a time
 file is), each chunk is fitted by :func:`pamid.fit_least_squares` (the same solver, bounds
 and intervals as ``pamid fit``), and only its constants are kept: memory holds one chunk
 and the table of results, never the file. The chunks after the first have the first's
-shape class (:func:`pamid._fit._batch.padded_rows`, ``padded_lanes``), so they run the
+shape class (:func:`pamid._lanes._batch.padded_rows`, ``padded_lanes``), so they run the
 programs it compiled.
 
 Writes ``constants.parquet`` to ``--out`` (one row per muscle, in file order: its rows,

@@ -1,6 +1,6 @@
 """``pamid warm-up``: compile, once, the programs a lab's next one-muscle file will run.
 
-A bench file packs to a size class of rows (:func:`pamid._fit._batch.padded_rows`: powers
+A bench file packs to a size class of rows (:func:`pamid._lanes._batch.padded_rows`: powers
 of two for a file of one muscle), and the programs of a class, once compiled, are kept on
 disk (``PAMID_CACHE_DIR``) for every later file of that class. This command runs `pamid
 fit`, `compare` and `diagnose`, exactly as a user runs them (each a process of its own,
@@ -44,7 +44,7 @@ def register(subparsers) -> None:
 
 def size_classes(max_rows: int) -> list[int]:
     """The row classes of one-muscle files up to ``max_rows`` (the one holding it too)."""
-    from .._fit._batch import ROWS_MIN, padded_rows
+    from .._lanes._batch import ROWS_MIN, padded_rows
 
     top = padded_rows(max(int(max_rows), 1))
     sizes, n = [], ROWS_MIN

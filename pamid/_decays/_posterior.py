@@ -55,8 +55,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._fit._batch import FitData, pack
 from .._fit._spec import ModelSpec
+from .._lanes._batch import FitData, pack
 from .._sampling._mcmc import McmcResult, fit_mcmc
 from .._sampling._posterior import Prior
 from .._sim._oscillator import DampedOscillator, oscillator_response, simulate_oscillator

@@ -37,10 +37,10 @@ import pandas as pd
 from .._data._bench import BenchData
 from .._errors import BenchDataError
 from .._fit._api import fit_least_squares
-from .._fit._batch import FitData
 from .._fit._compare import FoldPlan, fit_with_folds, fold_plan, predict_lanes
 from .._fit._spec import ModelSpec, get_model
 from .._inference import residual_variance, unscaled_covariance, wald_interval
+from .._lanes._batch import FitData
 
 #: Options whose CV RMSE is within this fraction of the lowest are tied; of tied options the
 #: one of lowest BIC is chosen (the fewest constants, unless more fit much better).

@@ -60,13 +60,13 @@ from .._effects._definitions import (
     time_since_step,
     transforms,
 )
-from .._fit import _export_cache
 from .._fit._api import fit_least_squares
-from .._fit._batch import map_lanes, pack
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
-from .._fit._sharding import lane_devices
 from .._fit._spec import ModelSpec, builtin_key
 from .._inference import residual_variance, unscaled_covariance, wald_interval
+from .._lanes import _export_cache
+from .._lanes._batch import map_lanes, pack
+from .._lanes._sharding import lane_devices
 from .._solvers import (
     CONVERGED,
     MAX_STEPS,
@@ -842,7 +842,7 @@ def _predict(spec, theta, tvals, x, implicit: bool):
 #: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance.
 LANE_BYTES_PER_SAMPLE = 1024
 #: Temporaries one compiled call may hold: lanes per call = this / (bytes per lane). Two CPU
-#: threads run calls side by side (:func:`pamid._fit._batch.map_lanes`).
+#: threads run calls side by side (:func:`pamid._lanes._batch.map_lanes`).
 CALL_BUDGET_BYTES = 256 * 2**20
 #: Lanes of every compiled call when the samples are few (:func:`_run_lanes`)...
 CALL_LANES = 64
@@ -856,7 +856,7 @@ CALL_LANE_SAMPLES = 64 * 1024
 def lanes_per_call(n_samples: int) -> int:
     """Lanes per compiled call for muscles of ``n_samples`` (padded) samples: a power of two
     whose temporaries fit :data:`CALL_BUDGET_BYTES`, at most ``CHUNK_LANES``."""
-    from .._fit._batch import CHUNK_LANES
+    from .._lanes._batch import CHUNK_LANES
 
     fit = max(1, CALL_BUDGET_BYTES // (LANE_BYTES_PER_SAMPLE * max(n_samples, 1)))
     return min(CHUNK_LANES, 1 << (fit.bit_length() - 1))
@@ -886,7 +886,7 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     power of two) where that many would hold more than ``CALL_LANE_SAMPLES`` lane-samples,
     never more than :func:`lanes_per_call` allows. Fewer lanes than one call holds are
     padded (repeating the last lane); more are cut into calls of that size
-    (:func:`pamid._fit._batch.map_lanes`). One size, whatever the number of lanes: every
+    (:func:`pamid._lanes._batch.map_lanes`). One size, whatever the number of lanes: every
     step of a forward selection, every fold and every diagnosis of muscles of the same
     sample count reuses one compiled shape (calls sized to the lanes, 16, 32 or 64 of them,
     compiled up to three shapes per set width, each about a second)."""

@@ -10,9 +10,9 @@ import pandas as pd
 
 from .._data._bench import BenchData
 from .._inference import scale_covariance
+from .._lanes._batch import FitData, pack_rows
 from .._solvers import as_solver
 from . import _correlated, _intervals
-from ._batch import FitData, pack_rows
 from ._least_squares import DEFAULT_STARTS, bounds_arrays, first_solve, fit_lanes, statistics
 from ._spec import ModelSpec, get_model
 
@@ -350,7 +350,7 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
     """Pack a loaded bench file into a batch, one lane per muscle, with the model's inputs.
 
     Straight from the frame's columns (no per-muscle frames): muscle codes by one
-    ``pd.factorize``, then :func:`~pamid._fit._batch.pack_rows`. The curve of every sample
+    ``pd.factorize``, then :func:`~pamid._lanes._batch.pack_rows`. The curve of every sample
     (the bootstrap's resampling unit) is the file's one curve definition,
     ``bench.curves`` (:func:`pamid._data._curves.find_curves`); ``curves=False`` puts
     every sample of a muscle in curve 0, for fits that resample nothing.
@@ -377,9 +377,9 @@ def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton
     ``pamid fit`` runs this on a thread of its own while it reads the rest of the file
     (``load_bench``'s ``on_rows``). Does nothing on several devices (those calls do not go
     through the programs kept on disk). Returns whether every program was loaded."""
-    from . import _export_cache
-    from ._batch import call_layout, default_chunk, padded_rows
-    from ._sharding import lane_devices
+    from .._lanes import _export_cache
+    from .._lanes._batch import call_layout, default_chunk, padded_rows
+    from .._lanes._sharding import lane_devices
 
     counts = np.asarray(rows_per_muscle)
     devices = lane_devices()

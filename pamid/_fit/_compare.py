@@ -38,8 +38,8 @@ import pandas as pd
 from .._data._bench import BenchData
 from .._data._holdout import holdout_units
 from .._errors import BenchDataError
+from .._lanes._batch import FitData, map_lanes, pack_rows
 from ._api import FitResult, bench_to_fit_data, fit_least_squares
-from ._batch import FitData, map_lanes, pack_rows
 from ._compare_options import BIC_FORMULA, MIN_TRIALS_FOR_TRIAL_CV, N_FOLDS
 from ._spec import MODELS, ModelSpec, builtin_key, get_model
 

@@ -58,7 +58,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import gram_inverse, t_critical, wald_interval
-from ._batch import FitData, map_lanes
+from .._lanes._batch import FitData, map_lanes
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
 
@@ -338,7 +338,7 @@ LAG1_P = 0.01
 def trial_groups(bench, of: str = "trial", muscles=None, width: int | None = None
                  ) -> np.ndarray:
     """The trial of every row of a loaded bench file, packed like its batch (M, n_max),
-    −1 on padding: ``bench.curves.trial`` by :func:`~pamid._fit._batch.pack_rows`.
+    −1 on padding: ``bench.curves.trial`` by :func:`~pamid._lanes._batch.pack_rows`.
     ``of="curve"``: the curve of every row (``bench.curves.curve``) instead.
 
     ``muscles``: only these muscles (indices, in this order), their curves found on their
@@ -346,7 +346,7 @@ def trial_groups(bench, of: str = "trial", muscles=None, width: int | None = Non
     ``width`` columns (the batch's)."""
     import pandas as pd
 
-    from ._batch import pack_rows
+    from .._lanes._batch import pack_rows
 
     codes = pd.factorize(bench.frame["muscle"], sort=False)[0]
     if muscles is None:

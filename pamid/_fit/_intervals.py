@@ -23,8 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import t_critical, wald, wald_interval  # noqa: F401  (pamid.engine)
+from .._lanes._batch import FitData, default_chunk, map_lanes
 from .._solvers import ProfileNewton, generic_derivatives
-from ._batch import FitData, default_chunk, map_lanes
 from ._least_squares import _key, solve
 from ._spec import ModelSpec
 

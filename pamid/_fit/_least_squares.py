@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import unscaled_covariance
+from .._lanes._batch import FitData, map_lanes, padded_rows
 from .._solvers import SOLVER_CLASSES, Solver, as_solver, residuals  # noqa: F401
-from ._batch import FitData, map_lanes, padded_rows
 from ._spec import ModelSpec, builtin_key
 
 #: The solvers' names (``--solver``); the solvers themselves are values (``_solvers``).

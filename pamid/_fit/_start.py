@@ -75,7 +75,7 @@ def linear_constants(predict, n_params: int, inputs: tuple[str, ...], reference,
     if cache_key is None:
         hess = jax.jit(hessian)(theta)  # (n, p, p)
     else:
-        from ._export_cache import call
+        from .._lanes._export_cache import call
 
         hess = call(("linear_constants", *cache_key, tuple(np.asarray(ref).tolist())),
                     hessian, theta)

@@ -52,11 +52,11 @@ from scipy import optimize
 from .._data._bench import BenchData
 from .._errors import BenchDataError
 from .._fit._api import bench_to_fit_data
-from .._fit._batch import FitData
 from .._fit._compare import predict_lanes
 from .._fit._least_squares import fit_lanes
 from .._fit._spec import ModelSpec, get_model, spec_from_model
 from .._inference import t_critical
+from .._lanes._batch import FitData
 from .._models._bolen import HUNT_LAB_CODE_10MM, Bolen2026
 from ._descriptors import EMAX, Descriptors, muscle_descriptors
 from ._hierarchical import fit_hierarchical, predictive_interval

@@ -58,8 +58,8 @@ import numpy as np
 
 from .._data._bench import BenchData
 from .._fit._api import FitResult, bench_to_fit_data, fit_least_squares
-from .._fit._batch import FitData
 from .._fit._spec import ModelSpec, get_model
+from .._lanes._batch import FitData
 from . import _posterior
 from ._ensemble import EnsembleState, de_move, run_ensembles, stretch_move
 from ._options import SAMPLERS

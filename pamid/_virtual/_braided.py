@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from .._fit._api import fit_least_squares
-from .._fit._batch import pack
+from .._lanes._batch import pack
 from .._models._cullinan_presets import (
     PRESET_SEED,
     TEST_PRESSURES_KPA,

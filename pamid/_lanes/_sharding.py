@@ -1,6 +1,6 @@
 """Lanes (muscles, replicates) spread over several devices of one process.
 
-:func:`pamid._fit._batch.map_lanes` puts each chunk of lanes on a one-axis mesh of devices,
+:func:`pamid._lanes._batch.map_lanes` puts each chunk of lanes on a one-axis mesh of devices,
 split evenly along the lane axis (a ``NamedSharding``), and calls the same jitted, vmapped
 function as on one device: XLA partitions the compiled batch so that every device runs its
 own lanes, and only the stopping tests of the solvers' while loops are reduced across

@@ -222,7 +222,7 @@ CPU_CHUNK_LANES = 512
 def default_chunk(devices=None) -> int:
     """Lanes per device and compiled call when :func:`map_lanes` is given no ``chunk``:
     ``CPU_CHUNK_LANES`` on CPU devices, ``CHUNK_LANES`` on others (``devices``: default
-    :func:`pamid._fit._sharding.lane_devices`)."""
+    :func:`pamid._lanes._sharding.lane_devices`)."""
     devices = lane_devices() if devices is None else devices
     return CPU_CHUNK_LANES if devices[0].platform == "cpu" else CHUNK_LANES
 
@@ -236,7 +236,7 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     lanes independently. Outputs are pytrees of arrays with a leading lane axis,
     concatenated as NumPy arrays.
 
-    With several devices (:func:`pamid._fit._sharding.lane_devices`: all of this process's
+    With several devices (:func:`pamid._lanes._sharding.lane_devices`: all of this process's
     GPUs, or those chosen with ``use_devices``) every chunk holds up to ``chunk`` lanes per
     device, padded to a multiple of the device count, and is split evenly across the devices
     along the lane axis; ``fn`` (a jitted, vmapped function) then runs partitioned, each
