@@ -18,6 +18,9 @@ time within each group.
   ``integrated_time``): a residual that is white noise plus a slow wander has a small lag-1
   autocorrelation but a long τ, which the AR(1) formula from ρ_1 would miss. The
   selection's BIC uses it (:mod:`pamid._diagnose._select`).
+* Wilcoxon's signed-rank test (1945), one-sided (:func:`signed_rank_greater`): whether a
+  candidate predicts held-out curves better than the current model, curve by curve (the
+  selection's held-out check, :mod:`pamid._diagnose._select`).
 * Covariate dependence: the residual regressed on Legendre polynomials P1…P3 of the
   covariate scaled to [−1, 1], and on their products with the direction of motion when it
   is known (so a loop that changes with the covariate shows too), against the mean alone
@@ -35,7 +38,13 @@ from .._effects._basis import legendre_basis, scaled
 from .._inference import numerical_rank
 
 __all__ = ["autocorrelation_time", "covariate_dependence", "effective_sample_size",
-           "ljung_box", "runs_test", "scaled", "legendre_basis"]
+           "ljung_box", "runs_test", "scaled", "signed_rank_greater", "legendre_basis"]
+
+# The p-values come from scipy.special's distribution functions, not from scipy.stats:
+# importing scipy.stats takes 0.6 s (it builds every distribution's docstring), about a
+# fifth of a warm ``pamid diagnose`` of a one-muscle file (benchmarks/README.md, latency.py).
+# The functions are those scipy.stats itself evaluates: norm.sf(z) = ndtr(−z),
+# chi2.sf(q, k) = chdtrc(k, q), f.sf(f, d1, d2) = fdtrc(d1, d2, f).
 
 #: A residual whose lag-1 autocorrelation is below this many of its standard errors (1/√n
 #: for a white series: Bartlett, 1946) is taken as white by :func:`autocorrelation_time`
@@ -60,13 +69,13 @@ def runs_test(residuals: list[np.ndarray]) -> dict:
         mean += 2.0 * n1 * n2 / n + 1.0
         var += 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n**2 * (n - 1.0))
         n_total += n
-    from scipy import stats  # imported here: scipy.stats costs half a second at import
+    from scipy.special import ndtr
 
     if var <= 0:
         return {"runs": runs, "expected": mean, "z": math.nan, "p_value": math.nan}
     z = (runs - mean) / math.sqrt(var)
     return {"runs": int(runs), "expected": mean, "z": z,
-            "p_value": float(2.0 * stats.norm.sf(abs(z)))}
+            "p_value": float(2.0 * ndtr(-abs(z)))}
 
 
 def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
@@ -82,9 +91,9 @@ def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
         acf = np.array([float(r[k:] @ r[:-k]) / denom for k in range(1, h + 1)])
         q += n * (n + 2.0) * float(np.sum(acf**2 / (n - np.arange(1, h + 1))))
         dof += h
-    from scipy import stats
+    from scipy.special import chdtrc
 
-    p = float(stats.chi2.sf(q, dof)) if dof else math.nan
+    p = float(chdtrc(dof, q)) if dof else math.nan
     num, den = np.sum([_lag1_sums(r) for r in residuals], axis=0) if residuals else (0.0, 0.0)
     rho1 = float(num / den) if den > 0 else math.nan
     return {"q": q, "dof": dof, "lags": lags, "p_value": p, "lag1_autocorrelation": rho1}
@@ -183,11 +192,11 @@ def covariate_dependence(
     df2 = len(r) - n_groups - df1
     if df1 <= 0 or df2 <= 0 or rss1 <= 0:
         return {"f": math.nan, "dof": [int(df1), int(df2)], "p_value": math.nan, "bins": bins}
-    from scipy import stats
+    from scipy.special import fdtrc
 
     f = ((rss0 - rss1) / df1) / (rss1 / df2)
     return {"f": float(f), "dof": [int(df1), int(df2)],
-            "p_value": float(stats.f.sf(f, df1, df2)), "bins": bins,
+            "p_value": float(fdtrc(df1, df2, f)), "bins": bins,
             "explained_fraction": float(1.0 - rss1 / rss0) if rss0 > 0 else 0.0}
 
 
@@ -216,3 +225,78 @@ def _bins(r: np.ndarray, x: np.ndarray, n_bins: int) -> list[dict]:
                     "mean": float(np.mean(r[m])), "rmse": float(np.sqrt(np.mean(r[m] ** 2))),
                     "max_abs": float(np.max(np.abs(r[m])))})
     return out
+
+
+#: Largest number of differences for which :func:`signed_rank_greater` uses the exact null
+#: distribution of the statistic (without ties); above it, the normal approximation. The
+#: same rule as ``scipy.stats.wilcoxon(method="auto")`` (scipy 1.18).
+SIGNED_RANK_EXACT_MAX = 50
+#: Largest number of differences with tied sizes for which the p-value is the exact
+#: permutation test over every sign pattern (as scipy's "auto"; that case is left to
+#: scipy.stats itself: tied SSE differences of held-out curves do not occur in practice).
+SIGNED_RANK_PERMUTATION_MAX = 13
+
+
+def _signed_rank_distribution(n: int) -> np.ndarray:
+    """P(T⁺ = t), t = 0 … n(n+1)/2, for n differences without ties under the null: each
+    rank k is positive with probability ½, so the distribution of n is that of n − 1 halved
+    and shifted by k (scipy's recursion, the same arithmetic)."""
+    c = np.ones(1, dtype=np.float64)
+    for k in range(1, n + 1):
+        prev = c
+        c = np.zeros(k * (k + 1) // 2 + 1, dtype=np.float64)
+        m = len(prev)
+        c[:m] = prev * 0.5
+        c[-m:] += prev * 0.5
+    return c
+
+
+def _average_ranks(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ranks 1 … n of ``a`` with tied values given the mean of their ranks, and the size of
+    every group of equal values."""
+    order = np.argsort(a, kind="mergesort")
+    sorted_a = a[order]
+    first = np.r_[True, sorted_a[1:] != sorted_a[:-1]]
+    starts = np.flatnonzero(first)
+    sizes = np.diff(np.r_[starts, len(a)])
+    mean_rank = starts + (sizes + 1) / 2.0  # 1-based mean rank of each group
+    ranks = np.empty(len(a), dtype=np.float64)
+    ranks[order] = np.repeat(mean_rank, sizes)
+    return ranks, sizes
+
+
+def signed_rank_greater(d) -> float:
+    """Wilcoxon's signed-rank test (1945) that the differences ``d`` are centred above 0,
+    one-sided: the p-value of T⁺, the sum of the ranks of |d| over the positive d.
+
+    Zeros are dropped (Wilcoxon's rule). Without ties and with at most
+    :data:`SIGNED_RANK_EXACT_MAX` differences, the exact null distribution; otherwise the
+    normal approximation, E T⁺ = n(n+1)/4, Var T⁺ = (n(n+1)(2n+1) − Σ(t³ − t)/2)/24 with t
+    the sizes of groups of tied |d| (no continuity correction). This is
+    ``scipy.stats.wilcoxon(d, alternative="greater").pvalue`` (scipy 1.18, tested against it
+    in tests/test_diagnose_residual.py), without importing scipy.stats. NaN without any
+    difference.
+    """
+    from scipy.special import ndtr
+
+    d = np.asarray(d, dtype=np.float64)
+    d = d[d != 0]
+    n = len(d)
+    if n == 0:
+        return math.nan
+    ranks, sizes = _average_ranks(np.abs(d))
+    r_plus = float(np.sum((d > 0) * ranks))
+    ties = bool(np.any(sizes > 1))
+    if n <= SIGNED_RANK_EXACT_MAX and not ties:
+        pmf = _signed_rank_distribution(n)
+        k = int(np.floor(r_plus))
+        # As scipy sums it: the upper tail directly where it is the smaller side.
+        return float(pmf[k:].sum() if k <= n * (n + 1) / 4 else 1.0 - pmf[:k].sum())
+    if n <= min(SIGNED_RANK_EXACT_MAX, SIGNED_RANK_PERMUTATION_MAX):
+        from scipy import stats  # the rare case: scipy's own permutation test
+
+        return float(stats.wilcoxon(d, alternative="greater").pvalue)
+    mean = n * (n + 1.0) * 0.25
+    var = n * (n + 1.0) * (2.0 * n + 1.0)
+    se = math.sqrt((var - float(np.sum(sizes.astype(float) ** 3 - sizes)) / 2) / 24)
+    return float(ndtr(-(r_plus - mean) / se))

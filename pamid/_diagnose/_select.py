@@ -54,7 +54,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ._residual import effective_sample_size
+from ._residual import effective_sample_size, signed_rank_greater
 from ._result import UNEXPLAINED_SHARE
 
 BIC_THRESHOLD = 10.0
@@ -82,15 +82,13 @@ def held_out_p_value(current: SetFit, candidate: SetFit) -> float:
     (a sweep at its own temperature, say) makes any effect that varies from sweep to sweep
     look significant in-sample. Held-out curves are the independent units here.
     """
-    from scipy import stats
-
     if current.cv_unit_sse is None or candidate.cv_unit_sse is None:
         return math.nan
     diff = np.asarray(current.cv_unit_sse) - np.asarray(candidate.cv_unit_sse)
     diff = diff[np.isfinite(diff) & (diff != 0)]
     if len(diff) < CV_MIN_UNITS:
         return math.nan
-    return float(stats.wilcoxon(diff, alternative="greater").pvalue)
+    return signed_rank_greater(diff)
 
 
 def delta_bic(smaller: SetFit, larger: SetFit) -> float:
