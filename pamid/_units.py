@@ -11,6 +11,7 @@ The psi factor follows from the exact definitions of the pound-force and the inc
 
 from __future__ import annotations
 
+import math
 from decimal import Context, Decimal
 
 import numpy as np
@@ -27,6 +28,21 @@ KPA_PER_PSI = 6.894757293168361
 #: Standard atmosphere in kPa (exact by definition). A gauge pressure below
 #: ``-ATMOSPHERE_KPA`` would be a negative absolute pressure.
 ATMOSPHERE_KPA = 101.325
+
+#: Units that a muscle's resting length l0 restates in another: a constant in % of l0 per
+#: newton (a compliance in contraction) is also a length per newton, value·l0_mm/divisor.
+#: The one place the diagnosis's reports find that conversion (:func:`per_l0`).
+L0_UNITS: dict[str, tuple[str, float]] = {"%/N": ("mm/N", 100.0)}
+
+
+def per_l0(unit: str, l0_mm) -> tuple[str, float] | None:
+    """(other unit, factor) of a constant in ``unit`` for a muscle of resting length
+    ``l0_mm``: its value times the factor is the value in the other unit; None where the
+    unit has no such form or l0 is not known (0, None or NaN)."""
+    if unit not in L0_UNITS or not l0_mm or not math.isfinite(l0_mm):
+        return None
+    other, divisor = L0_UNITS[unit]
+    return other, float(l0_mm) / divisor
 
 #: Pressure units accepted in bench-file column names (``pressure_<unit>``).
 PRESSURE_UNITS: tuple[str, ...] = ("kPa", "bar", "Pa", "psi")

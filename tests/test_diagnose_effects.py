@@ -21,8 +21,8 @@ import pamid
 from pamid._decays._coulomb import DECAY_EFFECTS as DECAY_FIT_NAMES
 from pamid._diagnose._api import diagnose
 from pamid._effects._definitions import (
-    DECAY_EFFECTS,
-    STATIC_EFFECTS,
+    DECAY_EFFECT_DEFINITIONS,
+    STATIC_EFFECT_DEFINITIONS,
     _relaxation,
     moving_steps,
     time_since_step,
@@ -72,20 +72,21 @@ def _Named(name):
 
 
 def test_every_effect_names_an_injector_that_exists_and_physical_bounds():
-    names = [d.name for d in STATIC_EFFECTS]
+    names = [d.name for d in STATIC_EFFECT_DEFINITIONS]
     assert len(names) == len(set(names))
     assert {"transient", "softening", "sensor_offset", "compliance", "hysteresis"} <= set(names)
-    for d in STATIC_EFFECTS:
+    for d in STATIC_EFFECT_DEFINITIONS:
         assert d.injectors
         for injector in d.injectors:
             _resolve(injector)  # raises if the virtual bench has no such injector
         for c in d.constants:
             assert c.lower < c.upper
-    bound = {d.name: {c.name: (c.lower, c.upper) for c in d.constants} for d in STATIC_EFFECTS}
+    bound = {d.name: {c.name: (c.lower, c.upper) for c in d.constants}
+             for d in STATIC_EFFECT_DEFINITIONS}
     assert bound["compliance"]["c"] == (0.0, math.inf)
     assert bound["viscous_damping"]["g"][0] == 0.0
     assert bound["softening"]["s"] == (0.0, 1.0)
-    transient = next(d for d in STATIC_EFFECTS if d.name == "transient")
+    transient = next(d for d in STATIC_EFFECT_DEFINITIONS if d.name == "transient")
     assert transient.grid.lower == 0.0  # τ > 0
     # g may be negative (a pneumatic lag), but never a lag of more than the whole step
     muscle = SimpleNamespace(max_dF_dp_N_per_kPa=2.0, step_slope=None)
@@ -98,8 +99,8 @@ def test_every_effect_names_an_injector_that_exists_and_physical_bounds():
     assert transient.violation({"g": 3.0}, _Named("transient"), None, rod) is None
     assert "not physical" in transient.violation({"g": 4.5}, _Named("transient"), None, rod)
     # the decay diagnosis reads the same registry
-    assert DECAY_FIT_NAMES == {e.name: e.fit_name for e in DECAY_EFFECTS}
-    friction = next(e for e in DECAY_EFFECTS if e.name == "coulomb_friction")
+    assert DECAY_FIT_NAMES == {e.name: e.fit_name for e in DECAY_EFFECT_DEFINITIONS}
+    friction = next(e for e in DECAY_EFFECT_DEFINITIONS if e.name == "coulomb_friction")
     assert friction.violation(-0.01) is not None and friction.violation(0.01) is None
 
 
@@ -268,3 +269,14 @@ def test_the_terms_a_model_already_contains_are_found_from_the_model_not_its_nam
     plane = degrees_in_model(get_model(Plane), np.array([0.0, 1.0, -10.0]), (p, k), frame,
                              ["pressure_kPa", "contraction_pct"], ranges)
     assert plane == {"pressure_kPa": (1,), "contraction_pct": (1,)}
+
+
+def test_a_length_per_newton_is_stated_once_through_l0():
+    """A constant in % of l0 per newton is also a length per newton, for a muscle whose l0
+    is known: one table (``pamid._units.L0_UNITS``), used by the diagnosis's JSON and its
+    report alike."""
+    from pamid._units import per_l0
+
+    assert per_l0("%/N", 250.0) == ("mm/N", 2.5)
+    assert per_l0("%/N", 0.0) is None and per_l0("%/N", float("nan")) is None
+    assert per_l0("N", 250.0) is None

@@ -20,7 +20,7 @@ import pytest
 
 import pamid
 from pamid._diagnose._api import diagnose
-from pamid._effects._definitions import STATIC_EFFECTS
+from pamid._effects._definitions import STATIC_EFFECT_DEFINITIONS
 from pamid._effects._slip import initial_state, play_operator, stop_operator
 from pamid._virtual._isometric import virtual_lab_file
 
@@ -195,7 +195,7 @@ def test_fitted_slip_elements_predict_minor_loops(slip_files):
     truth = injected.force_N({"moving_input": u, "sequence_axes": 1, "p_bar": p_bar})
     # The fitted effect on the new path: its own features times its constants, in the
     # definition's order (the direction is the path's, as the diagnosis derives it).
-    hysteresis = next(e for e in STATIC_EFFECTS if e.name == "hysteresis")
+    hysteresis = next(e for e in STATIC_EFFECT_DEFINITIONS if e.name == "hysteresis")
     file = types.SimpleNamespace(step_input="pressure", spec=None)
     muscle = types.SimpleNamespace(file=file, frame=pd.DataFrame({"pressure_kPa": u}),
                                    p_bar=p_bar, trial=np.zeros(len(u), int),

@@ -27,7 +27,7 @@ import pytest
 
 from pamid._diagnose._api import diagnose
 from pamid._diagnose._static import ROW_COUNTER_WHY, row_counters
-from pamid._effects._definitions import DECAY_EFFECTS, STATIC_EFFECTS
+from pamid._effects._definitions import DECAY_EFFECT_DEFINITIONS, STATIC_EFFECT_DEFINITIONS
 from pamid._effects._inject import InjectedDrift, InjectedTemperature
 from pamid._virtual._isometric import virtual_lab_file
 from pamid.report import diagnosis_report
@@ -111,14 +111,14 @@ def clean(tmp_path_factory):
 def test_every_effect_names_an_injector_in_each_protocol_where_it_is_physical():
     from test_diagnose_effects import _resolve
 
-    for d in STATIC_EFFECTS:
+    for d in STATIC_EFFECT_DEFINITIONS:
         for name in d.injectors:
             _resolve(name)
     # the effects with a protocol field of their own name one in each protocol
-    modules = {d.name: {n.split(".")[2] for n in d.injectors} for d in STATIC_EFFECTS}
+    modules = {d.name: {n.split(".")[2] for n in d.injectors} for d in STATIC_EFFECT_DEFINITIONS}
     for name in ("transient", "softening", "sensor_offset", "hysteresis"):
         assert {"_sweeps", "_isometric"} <= modules[name], name
-    drift = next(e for e in DECAY_EFFECTS if e.name == "drift")
+    drift = next(e for e in DECAY_EFFECT_DEFINITIONS if e.name == "drift")
     assert drift.injector is not None and "drift_rad_s" in drift.injector
 
 
@@ -129,9 +129,9 @@ def test_diagnose_help_lists_every_candidate_of_the_registry(capsys):
         main(["diagnose", "--help"])
     assert e.value.code == 0
     text = " ".join(capsys.readouterr().out.split())
-    for d in STATIC_EFFECTS:
+    for d in STATIC_EFFECT_DEFINITIONS:
         assert (f"{d.name}:<column>" if d.family is not None else d.name) in text
-    for e in DECAY_EFFECTS:
+    for e in DECAY_EFFECT_DEFINITIONS:
         assert e.name in text
     assert "not offered as a covariate" in text
 

@@ -34,7 +34,7 @@ from pamid._diagnose._api import diagnose
 from pamid._diagnose._forms import form_groups, other_forms
 from pamid._diagnose._select import SetFit, forward_select
 from pamid._diagnose._static import StaticProblem
-from pamid._effects._definitions import STATIC_EFFECTS, _relative_temperature_check
+from pamid._effects._definitions import STATIC_EFFECT_DEFINITIONS, _relative_temperature_check
 from pamid._effects._inject import (
     InjectedRelativeTemperature,
     InjectedTemperature,
@@ -120,10 +120,10 @@ def test_relative_injector_scales_the_force_it_is_given():
 
 
 def test_the_two_forms_are_one_effect_and_a_vanishing_force_is_not_physical():
-    forms = {d.name: d.form_of for d in STATIC_EFFECTS}
+    forms = {d.name: d.form_of for d in STATIC_EFFECT_DEFINITIONS}
     assert forms["temperature_relative"] == "temperature"
     assert forms["temperature"] is None
-    relative = next(d for d in STATIC_EFFECTS if d.name == "temperature_relative")
+    relative = next(d for d in STATIC_EFFECT_DEFINITIONS if d.name == "temperature_relative")
     assert [c.unit for c in relative.constants] == ["1/(bar·K)", "1/K"]
     assert relative.grid.lower == -273.15  # T0 above absolute zero
     file = SimpleNamespace(ranges={"pressure_kPa": (0.0, 600.0), "temperature_C": (20.0, 45.0)},
@@ -158,7 +158,7 @@ def test_forward_selection_never_takes_two_forms_of_one_effect():
 def test_the_members_of_a_family_are_not_forms_of_each_other():
     """``covariate:<col>`` of two columns are two effects (a pooled AARL fit selects the
     pressure's and the pressure rate's together): only ``form_of`` joins effects."""
-    defs = {d.name: d for d in STATIC_EFFECTS}
+    defs = {d.name: d for d in STATIC_EFFECT_DEFINITIONS}
     effects = [SimpleNamespace(name=n, definition=defs[d]) for n, d in (
         ("temperature", "temperature"), ("temperature_relative", "temperature_relative"),
         ("covariate:pressure_kPa", "covariate"),

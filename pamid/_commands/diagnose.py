@@ -18,10 +18,11 @@ from pathlib import Path
 def candidate_effects_text() -> str:
     """The candidate effects, as the registry (:mod:`pamid._effects._definitions`) lists
     them: bench files' effects, then free decays'."""
-    from .._effects._definitions import DECAY_EFFECTS, STATIC_EFFECTS
+    from .._effects._definitions import DECAY_EFFECT_DEFINITIONS, STATIC_EFFECT_DEFINITIONS
 
-    bench = [f"{d.name}:<column>" if d.family is not None else d.name for d in STATIC_EFFECTS]
-    decay = [e.name for e in DECAY_EFFECTS]
+    bench = [f"{d.name}:<column>" if d.family is not None else d.name
+             for d in STATIC_EFFECT_DEFINITIONS]
+    decay = [e.name for e in DECAY_EFFECT_DEFINITIONS]
     return f"bench files: {', '.join(bench)}; decay files: {', '.join(decay)}"
 
 

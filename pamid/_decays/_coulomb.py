@@ -77,7 +77,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._effects._definitions import DECAY_EFFECTS as _EFFECT_DEFINITIONS
+from .._effects._definitions import DECAY_EFFECT_DEFINITIONS
 from .._inference import covariance, wald_interval
 from .._sim._oscillator import cos_sinc
 from .._solvers import CONVERGED, levenberg_marquardt, linearised
@@ -94,8 +94,8 @@ __all__ = [
 ]
 
 #: Candidate effects of :func:`fit_decay_models` and the constant each one adds, from the
-#: registry of effects (:data:`pamid._effects._definitions.DECAY_EFFECTS`).
-DECAY_EFFECTS = {e.name: e.fit_name for e in _EFFECT_DEFINITIONS}
+#: registry of effects (:data:`pamid._effects._definitions.DECAY_EFFECT_DEFINITIONS`).
+DECAY_EFFECTS = {e.name: e.fit_name for e in DECAY_EFFECT_DEFINITIONS}
 #: The fixed parameter layout of every lane (the last two are the effects' constants).
 FIT_NAMES = (
     "zeta",

@@ -18,12 +18,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .._effects._definitions import DECAY_EFFECTS
+from .._effects._definitions import DECAY_EFFECT_DEFINITIONS
 from ._result import analyse_residual, build_diagnosis, unexplained
 from ._select import SetFit, forward_select
 
-COVARIATE_OF = {e.name: e.covariate for e in DECAY_EFFECTS}
-_DEFINITION = {e.name: e for e in DECAY_EFFECTS}
+COVARIATE_OF = {e.name: e.covariate for e in DECAY_EFFECT_DEFINITIONS}
+_DEFINITION = {e.name: e for e in DECAY_EFFECT_DEFINITIONS}
 
 
 def _set_fit(model_fit) -> SetFit:

@@ -51,7 +51,7 @@ import pandas as pd
 from .._data._holdout import holdout_units
 from .._effects._definitions import (
     COVARIATE_DEGREE,
-    STATIC_EFFECTS,
+    STATIC_EFFECT_DEFINITIONS,
     Effect,
     FileContext,
     MuscleContext,
@@ -74,7 +74,7 @@ from .._solvers import (
     newton_decrement,
     restrict,
 )
-from .._units import KPA_PER_BAR
+from .._units import KPA_PER_BAR, per_l0
 from ._residual import autocorrelation_time, legendre_basis, scaled
 from ._select import SetFit
 
@@ -447,15 +447,16 @@ class StaticProblem:
             step_slope=step_slope, step_noise=step_noise)
 
     def _effects(self) -> list[Effect]:
-        """The registry's effects (:data:`pamid._effects._definitions.STATIC_EFFECTS`) that
-        this file has the covariates for, with their feature columns or transform slot."""
+        """The registry's effects
+        (:data:`pamid._effects._definitions.STATIC_EFFECT_DEFINITIONS`) that this file has
+        the covariates for, with their feature columns or transform slot."""
         effects: list[Effect] = []
         col = 0
         slot = {d.name: j for j, d in enumerate(transforms())}
         #: Per feature column, the bounds the fit holds its constant within (±inf but for a
         #: constant declared ``held``: a slip element's weight, ≥ 0).
         self.col_bounds: list[tuple[float, float]] = []
-        for d in STATIC_EFFECTS:
+        for d in STATIC_EFFECT_DEFINITIONS:
             for name, covariate, consts in d.members(self.file):
                 if d.transform is not None:
                     cols, tr = (), slot[d.name]
@@ -1036,11 +1037,12 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
                     continue
                 lo, hi = wald_interval(v, se[j], dof, level)
                 consts[pname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit}
-                if unit == "%/N" and problem.l0_mm[i]:  # a length per newton, also in mm
-                    scale = problem.l0_mm[i] / 100.0
-                    consts[f"{pname}_mm_per_N"] = {
+                other = per_l0(unit, problem.l0_mm[i])  # a length per newton, also in mm
+                if other is not None:
+                    other_unit, scale = other
+                    consts[f"{pname}_{other_unit.replace('/', '_per_')}"] = {
                         "value": v * scale, "ci95": [float(lo) * scale, float(hi) * scale],
-                        "unit": "mm/N"}
+                        "unit": other_unit}
             for dname, unit, weights in (e.definition.derived(problem.file)
                                          if e.definition.derived is not None else ()):
                 # a linear combination of the constants, its variance wᵀ·Σ·w

@@ -6,9 +6,9 @@ a fitted force law F_model(θ; p, x) (Sárosi eq. 2.1, Cullinan eq. 3, any
 units and physical bounds, how it changes the model — feature columns added to the force
 (the constants enter linearly) or a transform of the model's inputs (the constants enter
 the force law itself) — its physical reason and source (the docstring of its builder), and
-the injector of the virtual bench that hides it in data. :data:`STATIC_EFFECTS` is the
+the injector of the virtual bench that hides it in data. :data:`STATIC_EFFECT_DEFINITIONS` is the
 registry that :class:`pamid._diagnose._static.StaticProblem` reads; adding an effect means
-adding one definition there. :data:`DECAY_EFFECTS` is the same for free decays
+adding one definition there. :data:`DECAY_EFFECT_DEFINITIONS` is the same for free decays
 (:mod:`pamid._decays._coulomb`).
 
 A constant chosen over a small grid (a time constant, a softening scale, a reference
@@ -36,12 +36,12 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from .._units import KPA_PER_BAR
+from .._units import KPA_PER_BAR, per_l0
 from ._basis import legendre_basis, scaled
 
 __all__ = [
-    "DECAY_EFFECTS",
-    "STATIC_EFFECTS",
+    "DECAY_EFFECT_DEFINITIONS",
+    "STATIC_EFFECT_DEFINITIONS",
     "Constant",
     "DecayEffect",
     "Effect",
@@ -264,8 +264,9 @@ def _offset_bounds(file: FileContext) -> tuple[float, float]:
 
 def _fmt(v: float, unit: str, muscle: MuscleContext | None) -> str:
     out = f"{v:.3g}" if unit == "1" else f"{v:.3g} {unit}"
-    if unit == "%/N" and muscle is not None and muscle.l0_mm:
-        out += f" ({v * muscle.l0_mm / 100.0:.3g} mm/N)"
+    other = per_l0(unit, muscle.l0_mm) if muscle is not None else None
+    if other is not None:
+        out += f" ({v * other[1]:.3g} {other[0]})"
     return out
 
 
@@ -753,7 +754,7 @@ def _sensor_offset() -> EffectDefinition:
 
 
 #: Every candidate effect of a static diagnosis, in the order they are listed.
-STATIC_EFFECTS: tuple[EffectDefinition, ...] = (
+STATIC_EFFECT_DEFINITIONS: tuple[EffectDefinition, ...] = (
     _hysteresis(), _temperature(), _temperature_relative(), _drift(), _viscous_damping(),
     _transient(), _softening(), _covariate(), _compliance(), _sensor_offset(),
 )
@@ -762,7 +763,7 @@ STATIC_EFFECTS: tuple[EffectDefinition, ...] = (
 def transforms() -> tuple[EffectDefinition, ...]:
     """The effects that transform the model's inputs, in the order of their constants in
     the lanes' parameter layout."""
-    return tuple(d for d in STATIC_EFFECTS if d.transform is not None)
+    return tuple(d for d in STATIC_EFFECT_DEFINITIONS if d.transform is not None)
 
 
 # -- the decay effects -----------------------------------------------------------------------
@@ -790,7 +791,7 @@ class DecayEffect:
         return None
 
 
-DECAY_EFFECTS: tuple[DecayEffect, ...] = (
+DECAY_EFFECT_DEFINITIONS: tuple[DecayEffect, ...] = (
     DecayEffect(
         "coulomb_friction", "velocity_rad_s", "coulomb_shift_rad", "coulomb_Nm",
         Constant("coulomb_Nm", "N·m", lower=0.0),

@@ -172,7 +172,7 @@ def simulate_decays(
         drift_rad_s: an equilibrium that moves after the release, β_eq + r·t (a slow leak,
             a creeping set point; hidden from the model): the arm oscillates about the moving
             line, released at the deflection from it with the release rate relative to it
-            (the ``drift`` effect of :data:`pamid._effects._definitions.DECAY_EFFECTS`).
+            (the ``drift`` effect of :data:`pamid._effects._definitions.DECAY_EFFECT_DEFINITIONS`).
 
     Returns:
         A table in the decay-file format: ``trial`` (1, 2, …), ``time_s``, ``angle_rad`` or
