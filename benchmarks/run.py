@@ -550,8 +550,10 @@ def _scipy_refits(problem, sets, n_ref):
     (set, muscle, fold), analytic Jacobian: Sárosi eq. 2.1's partial derivatives, the
     effects' feature columns (``problem.features``), the sensor offset δ (kPa) through
     ∂F/∂p, and the compliance's implicit law F = F_model(p + δ, κ + c·F), solved by Newton
-    steps and differentiated implicitly (every derivative over 1 − c·∂F_model/∂κ). Returns
-    the training SSE of every lane, in pamid's lane order, for the muscles < n_ref.
+    steps and differentiated implicitly (every derivative over 1 − c·∂F_model/∂κ); a lane
+    whose optimum leaves the bounds the diagnosis keeps (the model's; a slip element's
+    weight ≥ 0) is solved again within them (trf). Returns the training SSE of every lane,
+    in pamid's lane order, for the muscles < n_ref.
     ``sets`` may name no candidate of :func:`_scipy_left_out`."""
     import numpy as np
     from scipy.optimize import least_squares
@@ -562,6 +564,11 @@ def _scipy_refits(problem, sets, n_ref):
         cols = [c for name in s for c in problem.effect(name).columns]
         comp, offset = "compliance" in s, "sensor_offset" in s
         n_tr = comp + offset
+        model_lo, model_hi = problem.spec.bounds or ((-np.inf,) * k, (np.inf,) * k)
+        lower = np.array([*model_lo, *(-np.inf,) * n_tr, *(problem.col_bounds[c][0]
+                                                          for c in cols)])
+        upper = np.array([*model_hi, *(np.inf,) * n_tr, *(problem.col_bounds[c][1]
+                                                         for c in cols)])
         for m in range(n_ref):
             w_all = np.asarray(problem.data.w[m])
             p_bar, kappa = (np.asarray(x[m]) for x in problem.data.x)
@@ -611,6 +618,13 @@ def _scipy_refits(problem, sets, n_ref):
                 with np.errstate(over="ignore", invalid="ignore"):  # lm rejects such trials
                     sol = least_squares(resid, v0, jac=jac, method="lm",
                                         ftol=1e-12, xtol=1e-12, gtol=1e-12)
+                    if np.any(sol.x < lower) or np.any(sol.x > upper):
+                        # Outside the bounds pamid's lanes keep (the model's, a3 ≤ 0 …, and
+                        # a slip element's weight ≥ 0): the same problem within them.
+                        start = np.clip(sol.x, lower, upper)
+                        sol = least_squares(resid, start, jac=jac, method="trf",
+                                            bounds=(lower, upper), x_scale="jac",
+                                            ftol=1e-12, xtol=1e-12, gtol=1e-12)
                 out.append(float(sol.fun @ sol.fun))
     return np.asarray(out)
 
