@@ -162,3 +162,26 @@ def test_distributed_fit_two_processes(tmp_path):
     assert list(table["muscle"]) == list(ref.muscles)
     np.testing.assert_allclose(table[list(ref.param_names)].to_numpy(), ref.theta, rtol=1e-10)
     assert table["converged"].all()
+
+
+def test_one_lane_sizer_for_fits_intervals_and_refits():
+    """``items_per_call`` (pamid/_lanes/_batch.py) sizes every batched call: a fit's muscles,
+    a muscle's 2·p interval ends, the diagnosis's refits by their samples (a power of two,
+    at most CALL_LANES, at most CALL_LANE_SAMPLES lane-samples)."""
+    import jax
+
+    from pamid._diagnose._static import CALL_LANE_SAMPLES, CALL_LANES
+    from pamid._lanes._batch import CHUNK_LANES, CPU_CHUNK_LANES, items_per_call
+
+    cpu = jax.devices("cpu")
+    assert items_per_call(devices=cpu) == CPU_CHUNK_LANES
+    assert items_per_call(12, devices=cpu) == CPU_CHUNK_LANES // 12
+    refits = {n: items_per_call(n_samples=n, max_lane_samples=CALL_LANE_SAMPLES,
+                                max_lanes=CALL_LANES, devices=cpu)
+              for n in (64, 1024, 1500, 3000, 100_000)}
+    assert refits == {64: 64, 1024: 64, 1500: 32, 3000: 16, 100_000: 1}
+
+    class Gpu:
+        platform = "gpu"
+
+    assert items_per_call(12, devices=(Gpu(),)) == CHUNK_LANES

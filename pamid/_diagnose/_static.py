@@ -65,7 +65,7 @@ from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._spec import ModelSpec, builtin_key
 from .._inference import residual_variance, unscaled_covariance, wald_interval
 from .._lanes import _export_cache
-from .._lanes._batch import map_lanes, pack
+from .._lanes._batch import items_per_call, map_lanes, pack
 from .._lanes._sharding import lane_devices
 from .._solvers import (
     CONVERGED,
@@ -840,11 +840,11 @@ def _predict(spec, theta, tvals, x, implicit: bool):
 
 #: Bytes of temporaries per sample of one lane in the compiled lane function: XLA's memory
 #: analysis of ``_solve_lanes_jit`` on the CPU (8 lanes of 10,000 samples) gave 400–590 B for
-#: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance.
+#: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance
+#: (tests/test_cli_failures.py holds it). With at most ``CALL_LANE_SAMPLES`` lane-samples a
+#: call, a call's temporaries stay below 64 MiB; two CPU threads run calls side by side
+#: (:func:`pamid._lanes._batch.map_lanes`).
 LANE_BYTES_PER_SAMPLE = 1024
-#: Temporaries one compiled call may hold: lanes per call = this / (bytes per lane). Two CPU
-#: threads run calls side by side (:func:`pamid._lanes._batch.map_lanes`).
-CALL_BUDGET_BYTES = 256 * 2**20
 #: Lanes of every compiled call when the samples are few (:func:`_run_lanes`)...
 CALL_LANES = 64
 #: ... fewer (a power of two) where a call would hold more than this many lane-samples:
@@ -852,15 +852,6 @@ CALL_LANES = 64
 #: muscle of 3,000 rows: 6 lanes with the compliance padded to 64 took most of a step's
 #: time).
 CALL_LANE_SAMPLES = 64 * 1024
-
-
-def lanes_per_call(n_samples: int) -> int:
-    """Lanes per compiled call for muscles of ``n_samples`` (padded) samples: a power of two
-    whose temporaries fit :data:`CALL_BUDGET_BYTES`, at most ``CHUNK_LANES``."""
-    from .._lanes._batch import CHUNK_LANES
-
-    fit = max(1, CALL_BUDGET_BYTES // (LANE_BYTES_PER_SAMPLE * max(n_samples, 1)))
-    return min(CHUNK_LANES, 1 << (fit.bit_length() - 1))
 
 
 def _by_kind(implicit, run):
@@ -884,8 +875,9 @@ def _by_kind(implicit, run):
 def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function) over
     the lanes, in calls of one size for a given sample count: ``CALL_LANES`` lanes, fewer (a
-    power of two) where that many would hold more than ``CALL_LANE_SAMPLES`` lane-samples,
-    never more than :func:`lanes_per_call` allows. Fewer lanes than one call holds are
+    power of two) where that many would hold more than ``CALL_LANE_SAMPLES`` lane-samples
+    (pamid's one lane sizer, :func:`pamid._lanes._batch.items_per_call`). Fewer lanes than
+    one call holds are
     padded (repeating the last lane); more are cut into calls of that size
     (:func:`pamid._lanes._batch.map_lanes`). One size, whatever the number of lanes: every
     step of a forward selection, every fold and every diagnosis of muscles of the same
@@ -893,8 +885,8 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     compiled up to three shapes per set width, each about a second)."""
     n = len(lanes[0])
     n_samples = shared[1].shape[1]
-    fewest = min(CALL_LANES, 1 << (max(1, CALL_LANE_SAMPLES // n_samples).bit_length() - 1))
-    size = min(lanes_per_call(n_samples), fewest)
+    size = items_per_call(n_samples=n_samples, max_lane_samples=CALL_LANE_SAMPLES,
+                          max_lanes=CALL_LANES)
     if n < size:
         idx = np.minimum(np.arange(size), n - 1)
         lanes = tuple(a[idx] for a in lanes)

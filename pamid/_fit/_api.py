@@ -378,7 +378,7 @@ def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton
     (``load_bench``'s ``on_rows``). Does nothing on several devices (those calls do not go
     through the programs kept on disk). Returns whether every program was loaded."""
     from .._lanes import _export_cache
-    from .._lanes._batch import call_layout, default_chunk, padded_rows
+    from .._lanes._batch import call_layout, items_per_call, padded_rows
     from .._lanes._sharding import lane_devices
 
     counts = np.asarray(rows_per_muscle)
@@ -397,14 +397,13 @@ def prepare_fit(spec: ModelSpec, rows_per_muscle, *, solver: str = "gauss-newton
 
     try:
         with _export_cache.cached_only(), np.errstate(all="ignore"):  # no muscle: no warning
-            m, data = lanes(default_chunk())
+            m, data = lanes(items_per_call())
             _, stats, _, _ = first_solve(spec, data, solver=solver, starts=DEFAULT_STARTS,
                                          with_statistics=True)
             if stats is None:
                 statistics(spec, np.zeros((m, spec.n_params)), data, lag1=True)
             if "profile" in intervals:
-                m, data = lanes(_intervals._profile_chunk(spec, spec.n_params)
-                                or default_chunk())
+                m, data = lanes(items_per_call(2 * spec.n_params))
                 nan = np.full((m, spec.n_params), np.nan)  # no end to look for: stops at once
                 _intervals.profile(spec, data, nan, nan, np.ones(m), np.zeros(m), np.ones(m))
     except _export_cache.NotCached:

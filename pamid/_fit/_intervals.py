@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import t_critical, wald, wald_interval  # noqa: F401  (pamid.engine)
-from .._lanes._batch import FitData, default_chunk, map_lanes
+from .._lanes._batch import FitData, items_per_call, map_lanes
 from .._solvers import ProfileNewton, generic_derivatives
 from ._least_squares import _key, solve
 from ._spec import ModelSpec
@@ -77,7 +77,7 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     ends, ok = map_lanes(
         lambda *a: _profile_ends(spec, solver, *a),
         theta, cov, np.asarray(tcrit), np.asarray(s2), np.asarray(sse), data.x, data.y, data.w,
-        chunk=_profile_chunk(spec, theta.shape[-1]),
+        chunk=items_per_call(2 * theta.shape[-1]),  # a muscle's 2·p ends are its lanes
         cache_key=_key("profile", spec, solver.max_steps, solver.tol, solver.max_jump,
                        solver.check),
     )
@@ -89,15 +89,6 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
             lo = np.where(lo < bounds[0], bounds[0], lo)
             hi = np.where(hi > bounds[1], bounds[1], hi)
     return lo, hi, ok.all(axis=-1)
-
-
-def _profile_chunk(spec: ModelSpec, n_params: int) -> int | None:
-    """Muscles per call on the CPU: as many interval ends (2·p per muscle) as
-    :func:`map_lanes` takes lanes there, so that a chunk's arrays stay in the caches;
-    elsewhere ``map_lanes``'s default."""
-    if jax.default_backend() != "cpu":
-        return None
-    return max(1, default_chunk() // (2 * n_params))
 
 
 @jax.jit

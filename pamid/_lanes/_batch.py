@@ -219,12 +219,32 @@ CHUNK_LANES = 2048
 CPU_CHUNK_LANES = 512
 
 
-def default_chunk(devices=None) -> int:
-    """Lanes per device and compiled call when :func:`map_lanes` is given no ``chunk``:
-    ``CPU_CHUNK_LANES`` on CPU devices, ``CHUNK_LANES`` on others (``devices``: default
-    :func:`pamid._lanes._sharding.lane_devices`)."""
+def items_per_call(lanes_per_item: int = 1, *, n_samples: int | None = None,
+                   max_lane_samples: int | None = None, max_lanes: int | None = None,
+                   devices=None) -> int:
+    """pamid's one lane sizer: how many items (muscles, a muscle's interval ends, candidate
+    sets × folds) one compiled call of :func:`map_lanes` takes, per device.
+
+    - On CPU devices, ``CPU_CHUNK_LANES`` lanes shared among an item's ``lanes_per_item``
+      lanes (a call's arrays stay in the caches: the profile intervals' 2·p ends of a
+      muscle); on others, ``CHUNK_LANES`` items (``devices``: default
+      :func:`pamid._lanes._sharding.lane_devices`).
+    - With ``max_lane_samples`` (and ``n_samples`` per lane): at most the largest power of
+      two of lanes whose lanes × samples stay within it, and at most ``max_lanes``, so that
+      every call of a given sample count has one shape whatever the number of lanes (the
+      diagnosis's refits: :func:`pamid._diagnose._static._run_lanes`).
+    """
     devices = lane_devices() if devices is None else devices
-    return CPU_CHUNK_LANES if devices[0].platform == "cpu" else CHUNK_LANES
+    if devices[0].platform == "cpu":
+        size = max(1, CPU_CHUNK_LANES // max(int(lanes_per_item), 1))
+    else:
+        size = CHUNK_LANES
+    if max_lane_samples is not None:
+        fit = max(1, max_lane_samples // max(int(n_samples or 1), 1))
+        if max_lanes is not None:
+            fit = min(fit, max_lanes)
+        size = min(size, 1 << (fit.bit_length() - 1))
+    return size
 
 
 def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = None):
@@ -256,7 +276,7 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     n = leaves[0].shape[0]
     devices = lane_devices()
     if chunk is None:
-        chunk = default_chunk(devices)
+        chunk = items_per_call(devices=devices)
     if len(devices) > 1:
         return _map_lanes_sharded(fn, arrays, n, chunk, devices)
     # One device picked with use_devices or jax.default_device: run there, named in every
