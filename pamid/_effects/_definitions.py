@@ -710,12 +710,17 @@ def _compliance_transform(x, c, force, io):
 
 
 def _compliance() -> EffectDefinition:
-    """The rig stretches under load: F solves F = F_model(p, x + c·F).
+    """Something in series with the force stretches under load: F solves
+    F = F_model(p, x + c·F).
 
     Physical reason: the load cell, its mounts and any cable stretch under the force, so the
     muscle is shorter than the encoder says by c·F (a spring in series; Sárosi's rig reads
-    the rod, not the muscle). A spring has c ≥ 0: a negative c would mean a rig that
-    shortens under load. Injector: :class:`pamid._effects._inject.InjectedCompliance`.
+    the rod, not the muscle); so do the muscle's own end fittings and braid, which a static
+    law of p and κ alone does not describe. On the AARL 10 mm muscles the fitted c grew with
+    the muscle's length (0.0012, 0.0066 and 0.025 mm/N at 83, 132 and 281 mm;
+    experiments/README.md §10): there it is the muscle's stretch, not the rig's. A spring
+    has c ≥ 0: a negative c would mean a line that shortens under load. Injector:
+    :class:`pamid._effects._inject.InjectedCompliance`.
     """
     return EffectDefinition(
         name="compliance", covariates=(), constants=(Constant("c", "{x}/N", lower=0.0),),
