@@ -200,3 +200,39 @@ def test_what_several_processes_refuse(tmp_path, bench_frame, capsys):
     assert main(["fit", str(path), "--stream", "--process-id", "1", "--out",
                  str(tmp_path / "o")]) == 2
     assert "go with --coordinator" in capsys.readouterr().err
+
+
+#: Options of ``pamid fit`` a worker of ``--processes`` does not take from process 0: what
+#: only process 0 does (--out, --json), what makes the job (the processes' own options), and
+#: what --stream refuses before any worker starts (MCMC, the bootstrap, plots, CSV and
+#: spreadsheet reading).
+NOT_FORWARDED = {"out", "json", "processes", "coordinator", "num_processes", "process_id",
+                 "method", "walkers", "max_steps", "thin", "likelihood", "nu", "sampler",
+                 "bootstrap", "max_plots", "sep", "decimal", "sheet", "header_row"}
+
+
+def test_a_worker_process_gets_every_option_that_changes_its_fit():
+    """``fit_processes._worker_argv`` writes process 0's options again for the others: each
+    option of ``pamid fit`` either reaches them with its value or is one that must not
+    (NOT_FORWARDED); a new option fails here until it is one or the other."""
+    from pamid._cli import _parser
+    from pamid._commands import fit_processes
+
+    parser = _parser()
+    argv = ["fit", "bench.parquet", "--stream", "--processes", "2", "--out", "o", "--json",
+            "--chunk-rows", "777", "--model", "cullinan", "--solver", "levenberg-marquardt",
+            "--intervals", "wald,hac", "--seed", "5", "--bounds", "A=0:", "--l0-mm", "250.5",
+            "--keep-censored", "--columns", "force_N=F,pressure_kPa=p"]
+    args = parser.parse_args(argv)
+    worker = fit_processes._worker_argv(args, "127.0.0.1:1234", 1)
+    assert worker[1:3] == ["-m", "pamid"]
+    again = parser.parse_args(worker[3:])
+    plumbing = {"func", "prepare", "before_jax", "outputs", "command"}
+    options = set(vars(args)) - plumbing
+    compared = options - NOT_FORWARDED
+    assert {k: getattr(again, k) for k in compared} == {k: getattr(args, k) for k in compared}
+    defaults = parser.parse_args(["fit", "bench.parquet"])
+    changed = {k for k in compared if getattr(args, k) != getattr(defaults, k)}
+    assert changed == compared - {"data"}, "set every forwarded option above"
+    assert (again.coordinator, again.num_processes, again.process_id, again.out) == (
+        "127.0.0.1:1234", 2, 1, None)
