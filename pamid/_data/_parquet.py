@@ -96,8 +96,7 @@ def parquet_chunks(path: Path, shown: str, rows: int,
             return  # a process with no muscle of its own
         if muscle is None:  # one muscle: the whole file
             pending = reader.read()
-        group_rows = np.cumsum([0] + [reader.metadata.row_group(g).num_rows
-                                      for g in range(reader.num_row_groups)])
+        group_rows = _group_starts(reader)
         first = int(np.searchsorted(group_rows, start, side="right")) - 1
         position, offset = int(group_rows[max(first, 0)]), start
         batches = () if muscle is None or start >= stop else reader.iter_batches(
@@ -148,6 +147,12 @@ def parquet_share(reader, muscle: str | None, index: int, count: int) -> tuple[i
     return _split(reader, muscle, index, count), _split(reader, muscle, index + 1, count)
 
 
+def _group_starts(reader) -> np.ndarray:
+    """The first row of every row group, and the number of rows after the last one."""
+    return np.cumsum([0] + [reader.metadata.row_group(g).num_rows
+                            for g in range(reader.num_row_groups)])
+
+
 def _split(reader, muscle: str, k: int, count: int) -> int:
     """The first row of share ``k``: the first muscle that starts at or after row
     ``k·rows // count``."""
@@ -157,8 +162,7 @@ def _split(reader, muscle: str, k: int, count: int) -> int:
     target = total * k // count
     if target <= 0 or target >= total:
         return max(0, min(target, total))
-    starts = np.cumsum([0] + [reader.metadata.row_group(g).num_rows
-                              for g in range(reader.num_row_groups)])
+    starts = _group_starts(reader)
     g = int(np.searchsorted(starts, target, side="right")) - 1
     ids = reader.read_row_group(g, columns=[muscle]).column(0)
     at = target - int(starts[g])
