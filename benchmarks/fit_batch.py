@@ -84,9 +84,9 @@ from pamid.io import write_text_atomic  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 SAROSI = get_model("sarosi")
-# The Sárosi model without its written-out kernels (``fast_path``): solve() runs optimistix's
-# Gauss–Newton for it, the previous default path.
-SAROSI_OPTIMISTIX = dataclasses.replace(SAROSI, fast_path=None)
+# The Sárosi model without its written-out kernels (``written_out=False``): solve() runs
+# optimistix's Gauss–Newton for it, the previous default path.
+SAROSI_OPTIMISTIX = dataclasses.replace(SAROSI, written_out=False)
 PROTOCOL = pamid.SarosiProtocol(min_force_N=10.0)
 TABLE_3_1 = np.asarray(pamid.sarosi.table_3_1().to_vector(), dtype=float)
 # A fixed generic start, not adapted to the data or to Table 3-1: 100 N and 100 N/bar with

@@ -55,7 +55,7 @@ from pamid.engine import statistics as fit_statistics  # noqa: E402
 SAROSI = get_model("sarosi")
 # Without its written-out kernels: solve() runs optimistix's Gauss–Newton (the previous
 # default), statistics() the Jacobian, QR and SVD per lane.
-SAROSI_GENERIC = dataclasses.replace(SAROSI, fast_path=None)
+SAROSI_GENERIC = dataclasses.replace(SAROSI, written_out=False)
 # The variable-projection start's grid in s = a3·κ_span (pamid/_solvers/_variable_projection.py).
 VP_GRID = np.concatenate([-np.geomspace(30.0, 0.05, 20), np.geomspace(0.05, 3.0, 4)])
 # Lanes per compiled call of the Sárosi kernels on the CPU (benchmarks/README.md, "Figures

@@ -18,8 +18,8 @@ JAX arrays), and check less than the workflows do. ::
 
 * Models: :func:`get_model` (a name of :func:`model_names`, a ``file.py:Class``, a
   :class:`pamid.ForceModel`) gives the :class:`ModelSpec` the engine fits; a spec with
-  ``fast_path=None`` (``dataclasses.replace``) is fitted by the generic solvers, without the
-  model's written-out kernels.
+  ``written_out=False`` (``dataclasses.replace``) is fitted by the generic solvers, without
+  the written-out kernels registered for its model class.
 * Least squares: :func:`solve` (one compiled call for the batch, from the model's start or
   ``theta0``; the solvers ``"gauss-newton"``, ``"levenberg-marquardt"``,
   ``"variable-projection"``, ``"jaxopt-levenberg-marquardt"``), :func:`statistics`;

@@ -177,7 +177,7 @@ def test_inputs_in_other_units_are_converted_exactly(tmp_path):
 def test_linear_constants_are_found_from_second_derivatives():
     from pamid._models._sarosi import Sarosi
 
-    assert SAROSI.model_class is Sarosi and SAROSI.fast_path is not None
+    assert SAROSI.model_class is Sarosi and SAROSI.kernels is not None
     linear = linear_constants(SAROSI.predict, 6, ("pressure_bar", "contraction_pct"),
                               [-4.0, 280.0, -0.3, -9.0, 300.0, -260.0])
     assert linear.tolist() == [True, True, False, True, True, True]
@@ -283,3 +283,27 @@ def test_the_model_is_a_pytree_under_jit_vmap_and_grad():
     batched = jax.vmap(lambda c: Quadratic(c, 1.2, -12.0, 0.01)(p, k))(jnp.arange(3.0))
     assert batched.shape == (3, 5)
     np.testing.assert_allclose(jax.jit(lambda m: m(p, k))(model), model(p, k))
+
+
+def test_written_out_kernels_are_found_by_the_model_class():
+    """Kernels are registered by class (``KERNELS``), not carried by a spec: every complete
+    view of Sarosi has them, a view of part of it, one made from an instance (whose values
+    are the start) and one with ``written_out=False`` have not; the old spelling still
+    is read with a warning."""
+    import dataclasses
+
+    from pamid._fit._spec import KERNELS
+    from pamid._models._cullinan import Cullinan
+    from pamid._models._sarosi import Sarosi, table_3_1
+
+    assert Sarosi in KERNELS and Cullinan not in KERNELS and CULLINAN.kernels is None
+    assert spec_from_model(Sarosi).kernels is SAROSI.kernels is KERNELS[Sarosi]()
+    assert spec_from_model(Sarosi, params=("a1", "a2", "a3", "a4", "a5")).kernels is None
+    assert spec_from_model(table_3_1()).kernels is None
+    generic = dataclasses.replace(SAROSI, written_out=False)
+    assert generic.kernels is None and generic.program_key != SAROSI.program_key
+    # The registered start stays: only the solvers and statistics are generic.
+    assert generic.candidates is None
+    with pytest.warns(DeprecationWarning, match="ModelSpec.kernels"):
+        assert SAROSI.fast_path is SAROSI.kernels and generic.fast_path is None
+

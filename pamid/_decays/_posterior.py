@@ -141,16 +141,27 @@ def decay_start(x, y, w):
     return jnp.asarray(out, dtype=jnp.float64)
 
 
-DECAY_SPEC = ModelSpec(
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class DecaySpec(ModelSpec):
+    """The free decay's closed-form trajectory as the fitting code sees it: ``theta`` the
+    five constants :data:`DECAY_NAMES`, ``x`` the time since the window's start."""
+
+    def predict(self, theta, x):
+        return decay_predict(theta, x)
+
+    def start(self, x, y, w):
+        return decay_start(x, y, w)
+
+    def make(self, theta):
+        return dict(zip(DECAY_NAMES, np.asarray(theta).tolist(), strict=True))
+
+
+DECAY_SPEC = DecaySpec(
     name="decay",
     param_names=DECAY_NAMES,
     param_units=DECAY_UNITS,
     units={"angle": "rad", "time": "s"},
-    predict=decay_predict,
-    start=decay_start,
     columns=("time_s",),
-    to_x=lambda t: (t,),
-    make=lambda theta: dict(zip(DECAY_NAMES, np.asarray(theta).tolist(), strict=True)),
     source="J·β̈ + c·β̇ + k·(β − β_eq) = 0, closed form (Cullinan section VI)",
     output=("angle", "rad"),
 )

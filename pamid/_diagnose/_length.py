@@ -185,39 +185,43 @@ def slope_unit(unit: str, form: str) -> str:
     return f"{unit} per 100 mm" if form == "linear" else f"{unit} per e-fold of l0"
 
 
-@functools.cache
-def smooth_in_l0_spec(base: ModelSpec) -> ModelSpec:
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class SmoothInL0(ModelSpec):
     """``base`` with every constant θ_j replaced by α_j + β_j·g (2p constants, α first, then
     β), its inputs those of ``base`` then g = :func:`l0_feature` of the row's l0 (the form is
     the caller's: the fit does not depend on it, so one spec, compiled once, serves both).
-    One spec per base model, so that its compiled programs are reused."""
-    p = base.n_params
-    slopes = tuple(f"{n}_slope" for n in base.param_names)
+    A model that wraps a model: made by :func:`smooth_in_l0_spec`."""
 
-    def predict(theta, x):
+    base: ModelSpec
+
+    def predict(self, theta, x):
         *inputs, g = x
+        p = self.base.n_params
         constants = theta[..., :p] + theta[..., p:] * g[..., None]
-        return base.predict(constants, tuple(inputs))
+        return self.base.predict(constants, tuple(inputs))
 
-    def start(x, y, w):  # the base model's start on the pooled rows, no slope
-        alpha = base.start(tuple(x[:-1]), y, w)
+    def start(self, x, y, w):  # the base model's start on the pooled rows, no slope
+        alpha = self.base.start(tuple(x[:-1]), y, w)
         return jnp.concatenate([alpha, jnp.zeros_like(alpha)], axis=-1)
 
-    def to_x(*cols):
-        return (*base.to_x(*cols[:-1]), cols[-1])
+    def to_x(self, *cols):
+        return (*self.base.to_x(*cols[:-1]), cols[-1])
 
-    return ModelSpec(
+
+@functools.cache
+def smooth_in_l0_spec(base: ModelSpec) -> SmoothInL0:
+    """:class:`SmoothInL0` of ``base``: one spec per base model, so that its compiled
+    programs are reused."""
+    slopes = tuple(f"{n}_slope" for n in base.param_names)
+    return SmoothInL0(
+        base=base,
         name=f"{base.name}_smooth_in_l0",
         param_names=base.param_names + slopes,
         param_units={**base.param_units,
                      **{s: f"{base.param_units[n]} per unit of g(l0)"
                         for s, n in zip(slopes, base.param_names, strict=True)}},
         units={**base.units, "l0": "mm"},
-        predict=predict,
-        start=start,
         columns=(*base.columns, "l0_feature"),
-        to_x=to_x,
-        make=lambda theta: theta,
         source=f"{base.source}, every constant α + β·g(l0)",
     )
 
@@ -250,7 +254,7 @@ def _pooled_fit(spec: ModelSpec, x, y, curve, fold, muscle, k_folds: int, m: int
         w=jnp.asarray(w),
         curve=jnp.asarray(np.broadcast_to(curve, (lanes, n))),
     )
-    solver = "gauss-newton" if spec.fast_path is not None else "levenberg-marquardt"
+    solver = "gauss-newton" if spec.kernels is not None else "levenberg-marquardt"
     fit = fit_least_squares(data, spec, solver=solver, intervals=("wald", "cluster"),
                             level=level)
     pred = np.asarray(predict_lanes(spec, fit.theta, data.x))

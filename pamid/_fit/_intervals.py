@@ -35,7 +35,7 @@ def _profile_ends(spec, solver, theta_hat, cov, tcrit, s2, sse_min, x, y, w):
     (:class:`pamid._solvers.ProfileNewton`) on the model's derivatives: its registered
     written-out ones where it has them, else automatic differentiation. Returns ends
     (M, p, 2) and converged flags (M, p, 2)."""
-    fast = spec.fast_path
+    fast = spec.kernels
     if fast is not None and fast.profile_derivatives is not None:
         derivatives, sse_only = fast.profile_derivatives(x, y, w)
     else:

@@ -110,7 +110,7 @@ def solve(
     solver = as_solver(solver)
     solver.check(spec)
     kernel = solver.kernel(spec)
-    fast = spec.fast_path
+    fast = spec.kernels
     if kernel is not None and bounds is None:
         # The model's registered written-out solver, with its own start.
         start = () if theta0 is None else (_host(theta0),)
@@ -170,7 +170,7 @@ def _fit_statistics(spec, x, y, w, curve, *theta0, max_steps, rtol, atol):
     """The model's registered Gauss–Newton (from its own start without ``theta0``) and
     :func:`statistics` (with the lag-1 sums within ``curve``) at its result, in one
     program."""
-    theta, ok, steps = spec.fast_path.gauss_newton(
+    theta, ok, steps = spec.kernels.gauss_newton(
         x, y, w, *theta0, max_steps=max_steps, rtol=rtol, atol=atol)
     return theta, ok, steps, _statistics_lag1(spec, theta, x, y, w, curve)
 
@@ -233,7 +233,7 @@ def _statistics_lag1(spec, theta, x, y, w, curve):
     (:func:`lag1_sums`) in the same compiled call: from the fast
     path's own pass over the samples where its statistics take ``curve=`` (Sárosi's
     ``sarosi_statistics``), else from the residual, computed once more."""
-    fast = spec.fast_path
+    fast = spec.kernels
     if fast is not None and fast.statistics_take_curve:
         return fast.statistics(theta, x, y, w, curve=curve)
     if fast is not None:
@@ -258,7 +258,7 @@ def statistics(spec: ModelSpec, theta, data: FitData, *, lag1: bool = False):
     (:func:`pamid._fit._least_squares.lag1_sums`: three more arrays), from the same compiled
     call (a pass of its own and its round trip cost the fit of one muscle more than a
     quarter of its time: the same README section, (f))."""
-    fast = spec.fast_path
+    fast = spec.kernels
     if lag1:
         out = map_lanes(
             lambda t, x, y, w, c: _statistics_lag1(spec, t, x, y, w, c), _host(theta),
@@ -537,7 +537,7 @@ def _jacobian_rows(spec, theta, data: FitData, i: int) -> np.ndarray:
 def _linear_in_all(spec: ModelSpec) -> bool:
     """Whether ``spec`` is linear in every constant (pamid's start knows it: ``spec.linear``;
     False for a model that brings its own start or kernels)."""
-    return spec.fast_path is None and spec.linear is not None and bool(np.all(spec.linear()))
+    return spec.kernels is None and spec.linear is not None and bool(np.all(spec.linear()))
 
 
 def _linear_fit(spec: ModelSpec, data: FitData):

@@ -2,15 +2,23 @@
 
 A model is fitted as ``y ≈ predict(theta, x)`` with ``theta`` a flat vector of constants
 and ``x`` a tuple of per-sample arrays. The batched solvers, the intervals, the bootstrap,
-the plots and the CLI only see this interface, so a new force law is fitted by writing one
-spec.
+the plots and the CLI only see this interface (:class:`ModelSpec`).
+
+A :class:`~pamid.ForceModel` is fitted through :class:`ModelView`, a thin flat view of its
+class generated once (:func:`spec_from_model`): its fields are the constants, and the view's
+methods build the model from ``theta`` and call it. Models made of other models (the
+length study's constants smooth in l0, the pooled models, the decay trajectory) are
+subclasses of :class:`ModelSpec` that wrap their base. pamid's own models are registered by
+name as classes (:data:`MODELS` makes their views on first use); written-out kernels are
+registered by model class (:data:`KERNELS`) and found by the view's type, not by a name.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, MutableMapping
 
 import jax.numpy as jnp
 import numpy as np
@@ -22,8 +30,9 @@ from .._models._sarosi import Sarosi
 
 @dataclasses.dataclass(frozen=True)
 class FastPath:
-    """A model's written-out kernels, registered with its spec and used in place of the
-    generic ones (``_least_squares.solve``, ``statistics``, ``_intervals.profile``).
+    """A model class's written-out kernels, registered for it in :data:`KERNELS` and used in
+    place of the generic ones (``_least_squares.solve``, ``statistics``,
+    ``_intervals.profile``) for a view that fits all of its constants from all of its inputs.
 
     Attributes:
         gauss_newton: ``(x, y, w, [theta0], *, max_steps, rtol, atol) -> (theta, ok,
@@ -35,6 +44,8 @@ class FastPath:
         variable_projection: ``(x, y, w, n_refine) -> (theta, _, bracket_width)`` or None.
         profile_derivatives: ``(x, y, w) -> (derivatives, sse_only)`` for the profile
             intervals' Newton iteration, or None.
+        start: ``(x, y, w) -> theta0`` for a batch, the model's start for every solver in
+            place of the generic one (kept where ``written_out=False``), or None.
     """
 
     gauss_newton: Callable
@@ -42,6 +53,7 @@ class FastPath:
     statistics_take_curve: bool = False
     variable_projection: Callable | None = None
     profile_derivatives: Callable | None = None
+    start: Callable | None = None
 
     @property
     def key(self) -> str:
@@ -50,52 +62,77 @@ class FastPath:
         return f"{self.gauss_newton.__module__}.{self.gauss_newton.__qualname__}"
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
 class ModelSpec:
-    """A model as the fitting code sees it.
+    """A model as the fitting code sees it: ``predict(theta, x)`` of a flat vector of
+    constants. A subclass defines :meth:`predict` and :meth:`start` (and :meth:`to_x`,
+    :meth:`make` where they are not the identity); its fields are data.
 
     Attributes:
         name: the model's name in outputs ("sarosi", "cullinan").
         param_names: names of the constants, in the order of ``theta``.
         param_units: unit of each constant.
         units: the units the constants are stated in (the JSON ``"units"`` field).
-        predict: ``predict(theta, x) -> y`` for one muscle; pure JAX.
-        start: ``start(x, y, w) -> theta0`` for a batch (leading muscle axis; ``w`` = 0 on
-            padding).
         columns: bench-frame columns that make ``x``, in order.
-        to_x: maps those columns (NumPy arrays) to the model's ``x``.
-        make: builds the model's parameter object (Sarosi, Cullinan) from ``theta``.
         source: the equation fitted, for outputs.
         output: the fitted quantity and its unit (force in N for the static models).
         bounds: physical (lower, upper) of each constant (±inf where none), or None.
-        fast_path: the model's registered written-out kernels, or None.
-        candidates: ``candidates(x, y, w, clip=True) -> (theta (M, K, p), sse (M, K))``,
-            start candidates best first (:mod:`._start`; ``clip``: into the bounds), or None
-            where the model brings its own start.
-        linear: ``linear() -> mask (p,)``, the constants the model is linear in (found on
-            first use, :func:`._start.linear_constants`), or None where the model brings
-            its own start.
         model_class: the :class:`~pamid.ForceModel` the spec was made from, or None.
         prior: uniform priors ``{name: (low, high)}`` declared by the model, for MCMC.
+        written_out: use the model class's registered written-out kernels
+            (:data:`KERNELS`, :attr:`kernels`) where it has them; False fits it with the
+            generic solvers and statistics (``dataclasses.replace(spec,
+            written_out=False)``).
     """
 
     name: str
     param_names: tuple[str, ...]
     param_units: dict[str, str]
     units: dict[str, str]
-    predict: Callable
-    start: Callable
     columns: tuple[str, ...]
-    to_x: Callable
-    make: Callable
     source: str
     output: tuple[str, str] = ("force", "N")
     bounds: tuple[tuple[float, ...], tuple[float, ...]] | None = None
-    fast_path: FastPath | None = None
-    candidates: Callable | None = None
-    linear: Callable | None = None
     model_class: type | None = None
     prior: dict | None = None
+    written_out: bool = True
+
+    def predict(self, theta, x):
+        """The model's output for one set of constants ``theta`` (p,) at inputs ``x``."""
+        raise NotImplementedError(f"{type(self).__name__} defines no predict")
+
+    def start(self, x, y, w):
+        """Start values ``theta0`` (M, p) for a batch (leading muscle axis; ``w`` = 0 on
+        padding)."""
+        raise NotImplementedError(f"{type(self).__name__} defines no start")
+
+    def to_x(self, *cols):
+        """The model's ``x`` from its :attr:`columns` (NumPy arrays)."""
+        return tuple(cols)
+
+    def make(self, theta):
+        """The model's parameter object from ``theta`` (the vector itself by default)."""
+        return theta
+
+    #: ``candidates(x, y, w, clip=True) -> (theta (M, K, p), sse (M, K))``, start candidates
+    #: best first (:mod:`._start`; ``clip``: into the bounds), or None where the model
+    #: brings its own start.
+    candidates = None
+    #: ``linear() -> mask (p,)``, the constants the model is linear in (found on first use,
+    #: :func:`._start.linear_constants`), or None where the model brings its own start.
+    linear = None
+
+    @property
+    def kernels(self) -> FastPath | None:
+        """The registered written-out kernels the fit uses for this spec, or None."""
+        return None
+
+    @property
+    def program_key(self) -> tuple | None:
+        """A name for the spec that is the same in every process, for the compiled
+        programs kept on disk (``_export_cache``); None where there is none (a user's
+        model, whose code pamid's hash does not cover)."""
+        return None
 
     @property
     def n_params(self) -> int:
@@ -123,9 +160,46 @@ class ModelSpec:
         return self.to_x(*(frame[c].to_numpy(dtype=float) for c in self.columns))
 
 
+def _deprecated_fast_path(self) -> FastPath | None:
+    warnings.warn("ModelSpec.fast_path is deprecated: kernels are registered by model class "
+                  "(pamid._fit._spec.KERNELS); read ModelSpec.kernels, and give "
+                  "written_out=False to fit without them", DeprecationWarning, stacklevel=2)
+    return self.kernels
+
+
+ModelSpec.fast_path = property(_deprecated_fast_path)
+
+
 class ModelDefinitionError(ValueError):
     """A :class:`~pamid.ForceModel` that cannot be fitted as written; the message says what
     to change."""
+
+
+#: Written-out kernels by model class (dispatch on the model's type): a function that
+#: returns the class's :class:`FastPath` (built on first use).
+KERNELS: dict[type, Callable[[], FastPath]] = {}
+
+
+@functools.cache
+def _sarosi_kernels() -> FastPath:
+    """Sárosi eq. 2.1's written-out Gauss–Newton, statistics, variable projection, profile
+    derivatives and start (:mod:`pamid._solvers._sarosi`)."""
+    from .._solvers import (
+        sarosi_derivatives,
+        sarosi_gauss_newton,
+        sarosi_statistics,
+        sarosi_variable_projection,
+        sarosi_variable_projection_start,
+    )
+
+    return FastPath(gauss_newton=sarosi_gauss_newton,
+                    statistics=sarosi_statistics, statistics_take_curve=True,
+                    variable_projection=sarosi_variable_projection,
+                    profile_derivatives=sarosi_derivatives,
+                    start=sarosi_variable_projection_start)
+
+
+KERNELS[Sarosi] = _sarosi_kernels
 
 
 def _input_unit(name: str) -> tuple[str, str]:
@@ -145,20 +219,174 @@ def _field_defaults(cls) -> dict[str, float]:
     return out
 
 
+def _fitted_fields(cls) -> tuple[str, ...]:
+    """A model class's constants: its fields not marked ``eqx.field(static=True)``."""
+    return tuple(f.name for f in dataclasses.fields(cls) if not f.metadata.get("static", False))
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class ModelView(ModelSpec):
+    """The flat view of a :class:`~pamid.ForceModel` class that the fitting code fits:
+    ``theta`` holds the constants :attr:`param_names` (fields of ``model_class``, in field
+    order), the other fields keep the values :attr:`fixed`; ``x`` holds the inputs
+    :attr:`inputs` converted from :attr:`columns` by :attr:`factors`. Made by
+    :func:`spec_from_model`.
+
+    Attributes:
+        inputs: the model inputs taken, a prefix of ``model_class.inputs``.
+        factors: (multiplier, divisor) of each input from its column.
+        fixed: the values of the fields not fitted.
+        defaults: start values by constant (the fields' defaults, or an instance's values).
+        start_with: a batched ``start(x, y, w)`` given in place of the model's own, or None.
+        from_instance: made from an instance, whose values are the start: the class's
+            registered kernels (which bring their own start) are not used.
+    """
+
+    inputs: tuple[str, ...]
+    factors: tuple[tuple[float, float], ...]
+    fixed: dict[str, float] = dataclasses.field(default_factory=dict)
+    defaults: dict[str, float] = dataclasses.field(default_factory=dict)
+    start_with: Callable | None = None
+    from_instance: bool = False
+
+    def _build(self, theta):
+        return self.model_class(**{n: theta[..., i] for i, n in enumerate(self.param_names)},
+                                **self.fixed)
+
+    def predict(self, theta, x):
+        return self._build(theta)(*x)
+
+    def make(self, theta):
+        return self._build(jnp.asarray(theta))
+
+    def to_x(self, *cols):
+        return tuple(c if m == d == 1.0 else c * m / d
+                     for c, (m, d) in zip(cols, self.factors, strict=True))
+
+    @property
+    def _complete(self) -> bool:
+        """Whether the view fits every constant of its class, in field order, from every
+        input: what a class's registered kernels are written for."""
+        cls = self.model_class
+        return (not self.fixed and self.inputs == tuple(cls.inputs)
+                and self.param_names == _fitted_fields(cls))
+
+    @property
+    def _registered(self) -> FastPath | None:
+        make = KERNELS.get(self.model_class)
+        usable = make is not None and self._complete and not self.from_instance
+        return make() if usable else None
+
+    @property
+    def kernels(self) -> FastPath | None:
+        return self._registered if self.written_out else None
+
+    @property
+    def _own_start(self) -> Callable | None:
+        """The start the model brings: one given to :func:`spec_from_model`, the class's
+        ``start`` classmethod, or its registered kernels' start."""
+        if self.start_with is not None:
+            return self.start_with
+        own = getattr(self.model_class, "start", None)
+        if own is not None:
+            return own
+        registered = self._registered
+        return None if registered is None else registered.start
+
+    def start(self, x, y, w):
+        own = self._own_start
+        if own is not None:
+            return own(x, y, w)
+        return self._candidates(x, y, w)[0][:, 0]
+
+    @property
+    def candidates(self):
+        return None if self._own_start is not None else self._candidates
+
+    @property
+    def linear(self):
+        return None if self._own_start is not None else self._linear_mask
+
+    def _reference(self) -> list[float]:
+        return [float(self.defaults.get(n, 1.0)) for n in self.param_names]
+
+    def _linear_mask(self) -> np.ndarray:
+        # Found on first use (it traces the model), not when the view is made.
+        return self._linear_found
+
+    @functools.cached_property
+    def _linear_found(self) -> np.ndarray:
+        from ._start import linear_constants
+
+        cls = self.model_class
+        key = (cls.__module__, cls.__qualname__, self.param_names, self.inputs,
+               repr(sorted(self.fixed.items())))
+        return linear_constants(self.predict, self.n_params, self.inputs, self._reference(),
+                                cache_key=key if self._own_code else None)
+
+    @functools.cached_property
+    def _design(self):
+        from ._start import projected_candidates, trial_values
+
+        linear = self._linear_mask()
+        lacking = [n for n, lin in zip(self.param_names, linear, strict=True)
+                   if not lin and n not in self.defaults]
+        if lacking:
+            raise ModelDefinitionError(
+                f"{self.model_class.__name__}: give {', '.join(lacking)} a default (its start "
+                "value) or define a classmethod start(cls, inputs, force_N, weight)")
+        lower, upper = self._bound_arrays()
+        trials = trial_values(self._reference(), lower, upper, ~linear)
+        return projected_candidates(self.predict, linear, trials, lower, upper)
+
+    def _candidates(self, x, y, w, clip=True):
+        return self._design(x, y, w, clip=clip)
+
+    def _bound_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        p = self.n_params
+        if self.bounds is None:
+            return np.full(p, -np.inf), np.full(p, np.inf)
+        return np.asarray(self.bounds[0], float), np.asarray(self.bounds[1], float)
+
+    @property
+    def _own_code(self) -> bool:
+        """pamid's own classes are named alike in every process (and their code is in the
+        hash that keys the programs kept on disk); a user's are not."""
+        return self.model_class.__module__.split(".")[0] == "pamid"
+
+    @property
+    def program_key(self) -> tuple | None:
+        if not self._own_code:
+            return None
+        cls = self.model_class
+        start = self.start_with
+        return (f"{cls.__module__}.{cls.__qualname__}", self.param_names, self.inputs,
+                repr(sorted(self.fixed.items())), repr(self.bounds),
+                None if start is None else f"{start.__module__}.{start.__qualname__}",
+                self.kernels is not None)
+
+
 def spec_from_model(model, *, params: tuple[str, ...] | None = None,
                     inputs: tuple[str, ...] | None = None,
                     start: Callable | None = None,
-                    fast_path: FastPath | None = None) -> ModelSpec:
+                    fast_path: FastPath | None = None,
+                    name: str | None = None, source: str | None = None,
+                    units: dict[str, str] | None = None) -> ModelView:
     """The fitting code's view of a :class:`~pamid.ForceModel` subclass (or instance).
 
     Args:
-        model: the model class, or an instance whose field values become the start values.
+        model: the model class, or an instance whose field values become the start values
+            (fitted from them by the generic solvers: a class's registered kernels bring
+            their own start).
         params: the constants to fit (default: every field not marked
             ``eqx.field(static=True)``); the others keep their defaults.
         inputs: the inputs to give, a prefix of ``model.inputs`` (default: all of them).
         start: a batched ``start(x, y, w) -> theta0`` in place of the model's own
             ``start`` or the generic one.
-        fast_path: written-out kernels to use in place of the generic ones.
+        fast_path: written-out kernels for the class, registered for it in
+            :data:`KERNELS` (every complete view of the class then uses them).
+        name, source: the model's name and equation in outputs, in place of the class's.
+        units: the JSON ``"units"`` field, in place of the one made from the inputs.
 
     The constants' order is the fields' order. Raises :class:`ModelDefinitionError` where
     the class lacks something the fit needs (a unit, an input, a start value).
@@ -170,8 +398,7 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
         raise ModelDefinitionError(f"{cls!r} is not a pamid.ForceModel subclass")
     label = cls.__name__
     fields = [f for f in dataclasses.fields(cls)]
-    fitted = tuple(f.name for f in fields if not f.metadata.get("static", False))
-    names = fitted if params is None else tuple(params)
+    names = _fitted_fields(cls) if params is None else tuple(params)
     unknown = [n for n in names if n not in {f.name for f in fields}]
     if unknown:
         raise ModelDefinitionError(f"{label} has no constant(s) {', '.join(unknown)}")
@@ -188,8 +415,8 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
             "e.g. inputs = ('pressure_kPa', 'contraction_pct')")
     if taken != model_inputs[:len(taken)]:
         raise ModelDefinitionError(f"inputs {taken} are not a prefix of {label}.inputs")
-    units = dict(cls.units)
-    missing_units = [n for n in names if n not in units]
+    param_units = dict(cls.units)
+    missing_units = [n for n in names if n not in param_units]
     if missing_units:
         raise ModelDefinitionError(
             f"{label}.units has no unit for {', '.join(missing_units)}: give every constant "
@@ -209,122 +436,97 @@ def spec_from_model(model, *, params: tuple[str, ...] | None = None,
     bounds = None if np.all(np.isinf(lower)) and np.all(np.isinf(upper)) else (
         tuple(lower.tolist()), tuple(upper.tolist()))
     columns, factors = [], []
-    for name in taken:
-        column, *factor = INPUT_CONVERSIONS.get(name, (name, 1.0, 1.0))
+    for taken_name in taken:
+        column, *factor = INPUT_CONVERSIONS.get(taken_name, (taken_name, 1.0, 1.0))
         columns.append(column)
         factors.append(tuple(factor))
-
-    def predict(theta, x):
-        kwargs = {n: theta[..., i] for i, n in enumerate(names)}
-        return cls(**kwargs, **fixed)(*x)
-
-    def to_x(*cols):
-        return tuple(c if m == d == 1.0 else c * m / d for c, (m, d) in zip(cols, factors))
-
-    def make(theta):
-        theta = jnp.asarray(theta)
-        return cls(**{n: theta[..., i] for i, n in enumerate(names)}, **fixed)
-
-    own_start = getattr(cls, "start", None)
-    candidates = linear_mask = None
-    if start is None and own_start is not None:
-        def start(x, y, w):
-            return own_start(x, y, w)
-    elif start is None:
-        @functools.cache
-        def linear_mask():
-            # Found on first use (it traces the model), not when the spec is made.
-            from ._start import linear_constants
-
-            reference = [float(defaults.get(n, 1.0)) for n in names]
-            # pamid's own classes are named alike in every process (and their code is in
-            # the hash that keys the programs kept on disk); a user's are not.
-            own = cls.__module__.split(".")[0] == "pamid"
-            key = (cls.__module__, cls.__qualname__, names, taken, repr(sorted(fixed.items())))
-            return linear_constants(predict, len(names), taken, reference,
-                                    cache_key=key if own else None)
-
-        @functools.cache
-        def design():
-            from ._start import projected_candidates, trial_values
-
-            reference = [float(defaults.get(n, 1.0)) for n in names]
-            linear = linear_mask()
-            lacking = [n for n, lin in zip(names, linear) if not lin and n not in defaults]
-            if lacking:
-                raise ModelDefinitionError(
-                    f"{label}: give {', '.join(lacking)} a default (its start value) or "
-                    "define a classmethod start(cls, inputs, force_N, weight)")
-            trials = trial_values(reference, lower, upper, ~linear)
-            return projected_candidates(predict, linear, trials, lower, upper)
-
-        def candidates(x, y, w, clip=True):
-            return design()(x, y, w, clip=clip)
-
-        def start(x, y, w):
-            return candidates(x, y, w)[0][:, 0]
-
+    if fast_path is not None:
+        KERNELS[cls] = lambda: fast_path
     doc = (cls.__doc__ or "").strip().splitlines()
     if doc and doc[0].startswith(f"{label}("):  # written by dataclasses, not by the author
         doc = []
-    source = cls.source or (doc[0] if doc else f"{label} (user model)")
-    return ModelSpec(
-        name=cls.name or label.lower(),
+    return ModelView(
+        name=name or cls.name or label.lower(),
         param_names=names,
-        param_units={n: units[n] for n in names},
-        units={"force": "N", **dict(_input_unit(i) for i in taken)},
-        predict=predict,
-        start=start,
+        param_units={n: param_units[n] for n in names},
+        units=dict(units) if units is not None else {
+            "force": "N", **dict(_input_unit(i) for i in taken)},
         columns=tuple(columns),
-        to_x=to_x,
-        make=make,
-        source=source,
+        source=source or cls.source or (doc[0] if doc else f"{label} (user model)"),
         bounds=bounds,
-        fast_path=fast_path,
-        candidates=candidates,
-        linear=linear_mask,
         model_class=cls,
         prior=dict(cls.prior) or None,
+        inputs=taken,
+        factors=tuple(factors),
+        fixed=fixed,
+        defaults=defaults,
+        start_with=start,
+        from_instance=not isinstance(model, type),
     )
 
 
-def _sarosi_fast_path() -> FastPath:
-    from .._solvers import (
-        sarosi_derivatives,
-        sarosi_gauss_newton,
-        sarosi_statistics,
-        sarosi_variable_projection,
-    )
-
-    return FastPath(gauss_newton=sarosi_gauss_newton,
-                    statistics=sarosi_statistics, statistics_take_curve=True,
-                    variable_projection=sarosi_variable_projection,
-                    profile_derivatives=sarosi_derivatives)
+_CULLINAN_UNITS = {"force": "N", "pressure": "kPa", "contraction": "mm", "time": "s"}
 
 
-def _sarosi_start(x, y, w):
-    from .._solvers import sarosi_variable_projection_start
+class _Registry(MutableMapping):
+    """pamid's own models by name: a class with the options of its view, the view made on
+    first use (one per name, so that its compiled programs are reused); a view set
+    directly is kept as it is."""
 
-    return sarosi_variable_projection_start(x, y, w)
+    def __init__(self):
+        self._entries: dict[str, object] = {}
+
+    def add(self, name: str, model, **options) -> None:
+        self._entries[name] = (model, options)
+
+    def __getitem__(self, name: str) -> ModelSpec:
+        entry = self._entries[name]
+        if not isinstance(entry, ModelSpec):
+            model, options = entry
+            entry = self._entries[name] = spec_from_model(model, **options)
+        return entry
+
+    def __setitem__(self, name: str, spec: ModelSpec) -> None:
+        self._entries[name] = spec
+
+    def __delitem__(self, name: str) -> None:
+        del self._entries[name]
+
+    def __iter__(self):
+        return iter(self._entries)
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def model_class(self, name: str) -> type | None:
+        entry = self._entries[name]
+        return entry.model_class if isinstance(entry, ModelSpec) else entry[0]
 
 
-SAROSI = dataclasses.replace(
-    spec_from_model(Sarosi, start=_sarosi_start, fast_path=_sarosi_fast_path()),
-    make=Sarosi.from_vector,
-)
-CULLINAN = dataclasses.replace(
-    spec_from_model(Cullinan, params=CULLINAN_NAMES[:5], inputs=Cullinan.inputs[:2]),
-    units={"force": "N", "pressure": "kPa", "contraction": "mm", "time": "s"},
-    make=Cullinan.from_vector, source="Cullinan eq. 3 (static: A–E)",
-)
-CULLINAN_DYNAMIC = dataclasses.replace(
-    spec_from_model(Cullinan),
-    units=CULLINAN.units, make=Cullinan.from_vector,
-    source="Cullinan eq. 3 (with velocity: A–E and G)",
-)
+#: pamid's own models by name (``--model NAME``): classes, their views made on first use.
+MODELS = _Registry()
+MODELS.add("sarosi", Sarosi)
+MODELS.add("cullinan", Cullinan, params=CULLINAN_NAMES[:5], inputs=Cullinan.inputs[:2],
+           units=_CULLINAN_UNITS, source="Cullinan eq. 3 (static: A–E)")
 
-#: pamid's own models by name (``--model NAME``).
-MODELS: dict[str, ModelSpec] = {"sarosi": SAROSI, "cullinan": CULLINAN}
+
+def _published() -> None:
+    """The published static force laws (:mod:`pamid._models._published`), by their names."""
+    from .._models._published import published_models
+
+    for model, options in published_models():
+        MODELS.add(options.get("name") or model.name or model.__name__.lower(), model,
+                   **options)
+
+
+_published()
+
+
+#: The views of pamid's two models, as :func:`get_model` gives them.
+SAROSI = MODELS["sarosi"]
+CULLINAN = MODELS["cullinan"]
+CULLINAN_DYNAMIC = spec_from_model(Cullinan, units=_CULLINAN_UNITS,
+                                   source="Cullinan eq. 3 (with velocity: A–E and G)")
 
 #: A model's variants fitted where the data carry a further input: (column, spec) pairs
 #: tried in order (Cullinan eq. 3 with its damping constant G where the file has a
@@ -335,9 +537,7 @@ VARIANTS: dict[str, tuple[tuple[str, ModelSpec], ...]] = {
 
 def register_model(model, *, name: str | None = None, **kwargs) -> ModelSpec:
     """Add a :class:`~pamid.ForceModel` to pamid's own models (``--model NAME``)."""
-    spec = spec_from_model(model, **kwargs)
-    if name is not None:
-        spec = dataclasses.replace(spec, name=name)
+    spec = spec_from_model(model, name=name, **kwargs)
     MODELS[spec.name] = spec
     return spec
 
@@ -349,12 +549,10 @@ def model_names() -> tuple[str, ...]:
 
 
 def builtin_key(spec: ModelSpec) -> tuple | None:
-    """A name for one of pamid's own specs that is the same in every process (the key of
-    its exported programs, ``_export_cache``); None for any other spec."""
-    for known in (*MODELS.values(), *(v for pairs in VARIANTS.values() for _, v in pairs)):
-        if spec is known:
-            return (known.name, known.source)
-    return None
+    """A name for a spec of pamid's own models that is the same in every process (the key of
+    its exported programs, ``_export_cache``); None for any other spec
+    (:attr:`ModelSpec.program_key`)."""
+    return spec.program_key
 
 
 def get_model(name, frame=None) -> ModelSpec:
@@ -384,9 +582,9 @@ def get_model(name, frame=None) -> ModelSpec:
 @functools.cache
 def _class_spec(cls: type) -> ModelSpec:
     """One spec per model class, so that its compiled programs are reused across fits."""
-    for spec in MODELS.values():
-        if spec.model_class is cls:
-            return spec
+    for name in MODELS:
+        if MODELS.model_class(name) is cls:
+            return MODELS[name]
     return spec_from_model(cls)
 
 
@@ -479,14 +677,3 @@ def check_callable(spec: ModelSpec, where: str) -> None:
         raise ModelDefinitionError(
             f"{where}: {cls.__name__}.__call__ returned shape {shape} for inputs of shape "
             f"{np.shape(probe[0])}: it must return one force per sample")
-
-
-def _register_published() -> None:
-    """The published static force laws (:mod:`pamid._models._published`), by their names."""
-    from .._models._published import published_models
-
-    for model, options in published_models():
-        register_model(model, **options)
-
-
-_register_published()

@@ -17,6 +17,7 @@ g_d. Constants are laid out constant by constant: ``a1`` (shared), ``a2``, ``a2_
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax.numpy as jnp
@@ -63,41 +64,45 @@ def layout(base: ModelSpec, roles: tuple[str, ...], descriptors: tuple[str, ...]
     return tuple(names), tuple(blocks)
 
 
-@functools.cache
-def pooled_spec(base: ModelSpec, roles: tuple[str, ...], descriptors: tuple[str, ...],
-                n_muscles: int) -> ModelSpec:
-    """The pooled model of ``base`` with these roles (module text), for ``n_muscles``
-    muscles and the descriptors ``descriptors`` (their features, in this order, are the last
-    inputs). Cached, so that one spec (and its compiled programs) serves every call."""
-    names, blocks = layout(base, roles, descriptors, n_muscles)
-    n_desc = len(descriptors)
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Pooled(ModelSpec):
+    """The pooled model of ``base`` (module text): a model that wraps a model. Its inputs
+    are the base model's, then the muscle's index, then the features of ``descriptors``;
+    ``blocks`` is each base constant's (offset, count) in ``theta`` (:func:`layout`). Made
+    by :func:`pooled_spec`."""
 
-    def constants(theta, muscle, g):
+    base: ModelSpec
+    roles: tuple[str, ...]
+    descriptors: tuple[str, ...]
+    blocks: tuple[tuple[int, int], ...]
+
+    def _constants(self, theta, muscle, g):
         """(n, p) constants of each row from the pooled theta (k,), the rows' muscle index
         (n,) and features (n, D)."""
         cols = []
-        for role, (o, c) in zip(roles, blocks, strict=True):
+        for role, (o, c) in zip(self.roles, self.blocks, strict=True):
             if role == "shared":
                 cols.append(jnp.broadcast_to(theta[o], muscle.shape))
             elif role == "smooth":
-                value = theta[o] + (g @ theta[o + 1:o + c] if n_desc else 0.0)
+                value = theta[o] + (g @ theta[o + 1:o + c] if self.descriptors else 0.0)
                 cols.append(jnp.broadcast_to(value, muscle.shape))
             else:
                 cols.append(jnp.take(theta[o:o + c], muscle, mode="clip"))
         return jnp.stack(cols, axis=-1)
 
-    def predict(theta, x):
+    def predict(self, theta, x):
+        n_desc = len(self.descriptors)
         inputs = x[:len(x) - 1 - n_desc]
         muscle = jnp.asarray(x[len(inputs)]).astype(jnp.int32)
         g = (jnp.stack(x[len(inputs) + 1:], axis=-1) if n_desc
              else jnp.zeros(muscle.shape + (0,)))
-        return base.predict(constants(theta, muscle, g), tuple(inputs))
+        return self.base.predict(self._constants(theta, muscle, g), tuple(inputs))
 
-    def start(x, y, w):
-        base_x = tuple(x[:len(x) - 1 - n_desc])
-        theta0 = base.start(base_x, y, w)  # (L, p): the base model on the pooled rows
+    def start(self, x, y, w):
+        base_x = tuple(x[:len(x) - 1 - len(self.descriptors)])
+        theta0 = self.base.start(base_x, y, w)  # (L, p): the base model on the pooled rows
         parts = []
-        for j, (role, (_, c)) in enumerate(zip(roles, blocks, strict=True)):
+        for j, (role, (_, c)) in enumerate(zip(self.roles, self.blocks, strict=True)):
             value = theta0[:, j:j + 1]
             if role == "smooth":
                 parts += [value, jnp.zeros((theta0.shape[0], c - 1))]
@@ -105,6 +110,18 @@ def pooled_spec(base: ModelSpec, roles: tuple[str, ...], descriptors: tuple[str,
                 parts.append(jnp.repeat(value, c, axis=1))
         return jnp.concatenate(parts, axis=1)
 
+    def to_x(self, *cols):
+        k = len(self.base.columns)
+        return (*self.base.to_x(*cols[:k]), *cols[k:])
+
+
+@functools.cache
+def pooled_spec(base: ModelSpec, roles: tuple[str, ...], descriptors: tuple[str, ...],
+                n_muscles: int) -> Pooled:
+    """The pooled model of ``base`` with these roles (module text), for ``n_muscles``
+    muscles and the descriptors ``descriptors`` (their features, in this order, are the last
+    inputs). Cached, so that one spec (and its compiled programs) serves every call."""
+    names, blocks = layout(base, roles, descriptors, n_muscles)
     bounds = None
     if base.bounds is not None:
         lo, hi = [], []
@@ -123,17 +140,13 @@ def pooled_spec(base: ModelSpec, roles: tuple[str, ...], descriptors: tuple[str,
             units[names[o + k]] = (base.param_units[name] if role != "smooth" or k == 0
                                    else f"{base.param_units[name]} per e-fold")
     label = "-".join(f"{n}:{r}" for n, r in zip(base.param_names, roles, strict=True))
-    return ModelSpec(
+    return Pooled(
+        base=base, roles=roles, descriptors=descriptors, blocks=blocks,
         name=f"{base.name}_pooled[{label}]",
         param_names=names,
         param_units=units,
         units=dict(base.units),
-        predict=predict,
-        start=start,
         columns=(*base.columns, "muscle_index", *(f"ln_{d}" for d in descriptors)),
-        to_x=lambda *cols: (*base.to_x(*cols[:len(base.columns)]),
-                            *cols[len(base.columns):]),
-        make=lambda theta: theta,
         source=f"{base.source}, pooled over muscles ({label})",
         bounds=bounds,
     )

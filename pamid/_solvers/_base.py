@@ -17,7 +17,7 @@ solve) with
   measured).
 
 ``spec`` is the fitting code's view of a model (:class:`pamid._fit._spec.ModelSpec`): a
-solver calls only its ``predict(theta, x)`` and ``fast_path``.
+solver calls only its ``predict(theta, x)`` and ``kernels``.
 """
 
 from __future__ import annotations

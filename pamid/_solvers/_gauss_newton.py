@@ -16,7 +16,7 @@ class GaussNewton(Solver):
     restarts: ClassVar[bool] = True
 
     def kernel(self, spec):
-        return None if spec.fast_path is None else spec.fast_path.gauss_newton
+        return None if spec.kernels is None else spec.kernels.gauss_newton
 
     def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
         import optimistix as optx

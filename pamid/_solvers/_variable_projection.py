@@ -201,13 +201,13 @@ class VariableProjection(Solver):
     name: ClassVar[str] = "variable-projection"
 
     def check(self, spec):
-        fast = spec.fast_path
+        fast = spec.kernels
         if fast is None or fast.variable_projection is None:
             raise ValueError(f"variable projection is written out for the Sárosi model only, "
                              f"not for {spec.name}; use the gauss-newton or "
                              "levenberg-marquardt solver")
 
     def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
-        theta, _, width = spec.fast_path.variable_projection(x, y, w, n_refine=max_steps)
+        theta, _, width = spec.kernels.variable_projection(x, y, w, n_refine=max_steps)
         ok = jnp.all(jnp.isfinite(theta), axis=-1) & (width < jnp.maximum(rtol, 1e-8))
         return theta, ok, jnp.full(theta.shape[0], max_steps)
