@@ -263,7 +263,7 @@ class ModelView(ModelSpec):
         return tuple(c if m == d == 1.0 else c * m / d
                      for c, (m, d) in zip(cols, self.factors, strict=True))
 
-    @property
+    @functools.cached_property
     def _complete(self) -> bool:
         """Whether the view fits every constant of its class, in field order, from every
         input: what a class's registered kernels are written for."""
@@ -348,13 +348,13 @@ class ModelView(ModelSpec):
             return np.full(p, -np.inf), np.full(p, np.inf)
         return np.asarray(self.bounds[0], float), np.asarray(self.bounds[1], float)
 
-    @property
+    @functools.cached_property
     def _own_code(self) -> bool:
         """pamid's own classes are named alike in every process (and their code is in the
         hash that keys the programs kept on disk); a user's are not."""
         return self.model_class.__module__.split(".")[0] == "pamid"
 
-    @property
+    @functools.cached_property
     def program_key(self) -> tuple | None:
         if not self._own_code:
             return None
