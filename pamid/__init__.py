@@ -111,14 +111,14 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "simulate_braided_pam_bench": ("._virtual._braided", "simulate_braided_pam_bench"),
     "default_bench_path": ("._virtual._default", "default_bench_path"),
     "Injected": ("._effects._inject", "Injected"),
-    "InjectedCompliance": ("._effects._inject", "InjectedCompliance"),
-    "InjectedCovariate": ("._effects._inject", "InjectedCovariate"),
-    "InjectedDrift": ("._effects._inject", "InjectedDrift"),
-    "InjectedHysteresis": ("._effects._inject", "InjectedHysteresis"),
-    "InjectedMaxwellSlip": ("._effects._inject", "InjectedMaxwellSlip"),
-    "InjectedRelativeTemperature": ("._effects._inject", "InjectedRelativeTemperature"),
-    "InjectedTemperature": ("._effects._inject", "InjectedTemperature"),
-    "InjectedViscousDamping": ("._effects._inject", "InjectedViscousDamping"),
+    "InjectedCompliance": ("._effects._compliance", "InjectedCompliance"),
+    "InjectedCovariate": ("._effects._covariate", "InjectedCovariate"),
+    "InjectedDrift": ("._effects._drift", "InjectedDrift"),
+    "InjectedHysteresis": ("._effects._hysteresis", "InjectedHysteresis"),
+    "InjectedMaxwellSlip": ("._effects._hysteresis", "InjectedMaxwellSlip"),
+    "InjectedRelativeTemperature": ("._effects._temperature", "InjectedRelativeTemperature"),
+    "InjectedTemperature": ("._effects._temperature", "InjectedTemperature"),
+    "InjectedViscousDamping": ("._effects._viscous_damping", "InjectedViscousDamping"),
     # Free decays.
     "DecayReport": ("._decays._analysis", "DecayReport"),
     "DecrementEstimate": ("._decays._analysis", "DecrementEstimate"),
@@ -319,15 +319,15 @@ if TYPE_CHECKING:  # for type checkers and editors: exactly the names of ``_EXPO
     from ._diagnose._length import LengthStudy as LengthStudy
     from ._diagnose._length import length_study as length_study
     from ._diagnose._result import Diagnosis as Diagnosis
+    from ._effects._compliance import InjectedCompliance as InjectedCompliance
+    from ._effects._covariate import InjectedCovariate as InjectedCovariate
+    from ._effects._drift import InjectedDrift as InjectedDrift
+    from ._effects._hysteresis import InjectedHysteresis as InjectedHysteresis
+    from ._effects._hysteresis import InjectedMaxwellSlip as InjectedMaxwellSlip
     from ._effects._inject import Injected as Injected
-    from ._effects._inject import InjectedCompliance as InjectedCompliance
-    from ._effects._inject import InjectedCovariate as InjectedCovariate
-    from ._effects._inject import InjectedDrift as InjectedDrift
-    from ._effects._inject import InjectedHysteresis as InjectedHysteresis
-    from ._effects._inject import InjectedMaxwellSlip as InjectedMaxwellSlip
-    from ._effects._inject import InjectedRelativeTemperature as InjectedRelativeTemperature
-    from ._effects._inject import InjectedTemperature as InjectedTemperature
-    from ._effects._inject import InjectedViscousDamping as InjectedViscousDamping
+    from ._effects._temperature import InjectedRelativeTemperature as InjectedRelativeTemperature
+    from ._effects._temperature import InjectedTemperature as InjectedTemperature
+    from ._effects._viscous_damping import InjectedViscousDamping as InjectedViscousDamping
     from ._errors import BenchDataError as BenchDataError
     from ._errors import UntrustedResultError as UntrustedResultError
     from ._fit._api import FitResult as FitResult

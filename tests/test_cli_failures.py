@@ -422,7 +422,7 @@ def test_subsample_thins_rows_when_one_curve_is_too_many(tmp_path):
 
 
 def test_cli_max_rows_says_so_in_json_and_report(tmp_path, capsys):
-    from pamid._effects._inject import InjectedHysteresis
+    from pamid import InjectedHysteresis
 
     path = _sweeps(tmp_path, 40, 10, effects=(InjectedHysteresis(N_at_3_bar=9.0),))
     out = tmp_path / "diag"

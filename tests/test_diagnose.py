@@ -16,10 +16,7 @@ import pandas as pd
 import pytest
 
 import pamid
-from pamid._data._curves import find_curves
-from pamid._diagnose._api import diagnose
-from pamid._diagnose._residual import covariate_dependence, ljung_box, runs_test
-from pamid._effects._inject import (
+from pamid import (
     InjectedCompliance,
     InjectedCovariate,
     InjectedDrift,
@@ -27,6 +24,9 @@ from pamid._effects._inject import (
     InjectedTemperature,
     InjectedViscousDamping,
 )
+from pamid._data._curves import find_curves
+from pamid._diagnose._api import diagnose
+from pamid._diagnose._residual import covariate_dependence, ljung_box, runs_test
 
 NOISE_N = 2.0 / math.sqrt(5.0)
 SPEEDS = (1.0, 3.0, 2.0, 1.5)  # seconds per point of successive sweeps

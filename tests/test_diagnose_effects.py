@@ -20,14 +20,11 @@ import pytest
 import pamid
 from pamid._decays._coulomb import DECAY_EFFECTS as DECAY_FIT_NAMES
 from pamid._diagnose._api import diagnose
-from pamid._effects._definitions import (
-    DECAY_EFFECT_DEFINITIONS,
-    STATIC_EFFECT_DEFINITIONS,
-    _relaxation,
-    moving_steps,
-    time_since_step,
-)
-from pamid._effects._inject import InjectedDrift, InjectedTemperature
+from pamid._effects._definitions import DECAY_EFFECT_DEFINITIONS, STATIC_EFFECT_DEFINITIONS
+from pamid._effects._drift import InjectedDrift
+from pamid._effects._steps import moving_steps, time_since_step
+from pamid._effects._temperature import InjectedTemperature
+from pamid._effects._transient import _relaxation
 from pamid._virtual._isometric import virtual_lab_file
 from pamid.report import diagnosis_report
 

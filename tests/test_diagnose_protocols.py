@@ -25,10 +25,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pamid import InjectedDrift, InjectedTemperature
 from pamid._diagnose._api import diagnose
 from pamid._diagnose._static import ROW_COUNTER_WHY, row_counters
 from pamid._effects._definitions import DECAY_EFFECT_DEFINITIONS, STATIC_EFFECT_DEFINITIONS
-from pamid._effects._inject import InjectedDrift, InjectedTemperature
 from pamid._virtual._isometric import virtual_lab_file
 from pamid.report import diagnosis_report
 

@@ -34,11 +34,12 @@ from pamid._diagnose._api import diagnose
 from pamid._diagnose._forms import form_groups, other_forms
 from pamid._diagnose._select import SetFit, forward_select
 from pamid._diagnose._static import StaticProblem
-from pamid._effects._definitions import STATIC_EFFECT_DEFINITIONS, _relative_temperature_check
-from pamid._effects._inject import (
+from pamid._effects._definitions import STATIC_EFFECT_DEFINITIONS
+from pamid._effects._inject import apply_effects
+from pamid._effects._temperature import (
     InjectedRelativeTemperature,
     InjectedTemperature,
-    apply_effects,
+    _relative_temperature_check,
 )
 from pamid._fit._spec import get_model
 from pamid._virtual._isometric import virtual_lab_file

@@ -41,7 +41,7 @@ generic terms added after it (they may hold it in another form) but with those a
 it, so that the backward judge repeats the forward verdict where nothing else changed.
 
 A candidate whose fitted constants land at or past a physical bound (a negative compliance,
-a transient lagging by more than its whole step: :mod:`pamid._effects._definitions`) is
+a transient lagging by more than its whole step: :mod:`pamid._effects._transient`) is
 never significant, however much it lowers the BIC; its row says what it would have needed
 (``unphysical``).
 """

@@ -21,8 +21,9 @@ effect                 added to the force (N)                   constants
 ``covariate:<col>``    b1·P1(z) + b2·P2(z) + b3·P3(z)           b1, b2, b3 (N)
 =====================  =======================================  ==========================
 
-Each effect is one definition in :mod:`pamid._effects._definitions` (its constants, units,
-physical bounds, source and the virtual bench's injector); this module reads that registry.
+Each effect is one definition, in a module of :mod:`pamid._effects` of its own beside its
+injector (its constants, units, physical bounds, source and the virtual bench's injector),
+listed in :mod:`pamid._effects._definitions`; this module reads that registry.
 The temperature has a second form, ``temperature_relative``: F_model·(α0 + α1·p)·(T − T0)
 added, a share of the force per kelvin (α0 in 1/K, α1 in 1/(bar·K), T0 in °C over a grid).
 
@@ -49,17 +50,10 @@ import numpy as np
 import pandas as pd
 
 from .._data._holdout import holdout_units
-from .._effects._definitions import (
-    COVARIATE_DEGREE,
-    STATIC_EFFECT_DEFINITIONS,
-    Effect,
-    FileContext,
-    MuscleContext,
-    moving_steps,
-    rod_steps,
-    time_since_step,
-    transforms,
-)
+from .._effects._base import Effect, FileContext, MuscleContext
+from .._effects._covariate import COVARIATE_DEGREE
+from .._effects._definitions import STATIC_EFFECT_DEFINITIONS, transforms
+from .._effects._steps import moving_steps, rod_steps, time_since_step
 from .._fit._api import fit_least_squares
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._spec import ModelSpec, builtin_key
@@ -133,7 +127,7 @@ def derive_covariates(frame: pd.DataFrame, spec: ModelSpec, curves) -> pd.DataFr
     clock restarts), the rate of contraction ``speed_mm_s`` (or ``speed_pct_s`` without
     l0; zero at a held length) and, where the pressure moves at a held length, the
     pressure rate ``pressure_rate_kPa_s`` and the time since the last step of the moving
-    pressure in its trial ``time_since_step_s`` (:func:`pamid._effects._definitions.
+    pressure in its trial ``time_since_step_s`` (:func:`pamid._effects._steps.
     time_since_step`); ``repeat``, the trial's (or cycle's) order among the repeats of its
     setting, when there are repeats.
     """
@@ -741,7 +735,7 @@ def _on_bound(theta, lower, upper):
 
 
 def _step_input(covariates, muscle_curves) -> str | None:
-    """Which input the ``transient`` follows (:attr:`pamid._effects._definitions.FileContext.
+    """Which input the ``transient`` follows (:attr:`pamid._effects._base.FileContext.
     step_input`): the pressure where it moves in steps at a held length in some trial, else
     the contraction where every trial of every muscle is a sweep at held pressures (the rod
     steps at every point); None without time."""

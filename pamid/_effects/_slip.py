@@ -1,6 +1,6 @@
 """Friction with memory: the Maxwell-slip element, the one definition that the
 ``hysteresis`` effect's features (:mod:`pamid._effects._definitions`) and the virtual
-bench's :class:`~pamid._effects._inject.InjectedMaxwellSlip` both use.
+bench's :class:`~pamid._effects._hysteresis.InjectedMaxwellSlip` both use.
 
 A Maxwell-slip element is a spring in series with a block under dry friction (Lampaert,
 Al-Bender and Swevers, "A generalized Maxwell-slip friction model appropriate for control

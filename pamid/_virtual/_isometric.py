@@ -31,7 +31,9 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .._effects._inject import InjectedCompliance, InjectedHysteresis, apply_effects
+from .._effects._compliance import InjectedCompliance
+from .._effects._hysteresis import InjectedHysteresis
+from .._effects._inject import apply_effects
 from .._io import PARQUET_SUFFIXES, write_frame_atomic
 from .._models._sarosi import Sarosi, contraction_at_force_pct, sarosi_force, table_3_1
 from .._units import KPA_PER_BAR
@@ -99,7 +101,7 @@ class IsometricProtocol:
         hysteresis_N_at_3_bar, hysteresis_form: inflate/deflate hysteresis, half height at
             3 bar: the force lies ``h(p)`` below the static curve while the pressure rises
             (and holds after rising), ``h(p)`` above it while it falls — the form of
-            :class:`~pamid._effects._inject.InjectedHysteresis` with the pressure's
+            :class:`~pamid._effects._hysteresis.InjectedHysteresis` with the pressure's
             direction as the direction.
         softening, softening_repeats: the muscle softens from trial to trial at a level: its
             force is multiplied by 1 − s·(1 − exp(−repeat/r)), repeat = 0, 1, 2, ….

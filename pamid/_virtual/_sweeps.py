@@ -26,7 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .._effects._inject import InjectedCompliance, apply_effects
+from .._effects._compliance import InjectedCompliance
+from .._effects._inject import apply_effects
 from .._models._sarosi import Sarosi, contraction_at_force_pct, sarosi_force
 from .._units import KPA_PER_BAR
 
@@ -331,7 +332,7 @@ def _compliant_contraction(batched, p_bar, kappa_read, mm_per_N, l0_mm):
     """Solve F = F_model(p, κ_read + 100·c·F/l0) for the muscle's true contraction (Newton).
 
     The rig's stretch c·F shortens the muscle below what the rod position says
-    (:class:`~pamid._effects._inject.InjectedCompliance`). ``kappa_read`` has a
+    (:class:`~pamid._effects._compliance.InjectedCompliance`). ``kappa_read`` has a
     leading muscle axis (M, …); ``p_bar`` (bar) broadcasts to it, ``l0_mm`` is one length
     or one per muscle.
     """
