@@ -125,8 +125,8 @@ def test_compliance_force_and_its_derivatives_are_those_of_the_fixed_point(theta
     """F = F_model(p, κ + c·F) (Sárosi eq. 2.1 with a rig in series): the diagnosis' force
     solves the fixed point, and its derivatives in (a1…a6, c) are the implicit function's,
     dF/dq = (∂F_model/∂q) / (1 − c·∂F_model/∂κ), against a plain bisection here."""
-    from pamid._diagnose._static import _predict
     from pamid._effects._definitions import transforms
+    from pamid._effects._model import with_effects
     from pamid._fit._spec import get_model
 
     spec = get_model("sarosi")
@@ -139,7 +139,7 @@ def test_compliance_force_and_its_derivatives_are_those_of_the_fixed_point(theta
 
     def force(q):
         tv = jax.numpy.zeros(len(transforms())).at[slot].set(q[6])
-        return _predict(spec, q[:6], tv, x, True)
+        return with_effects(spec, True, 0).transformed(q[:6], tv, x)
 
     def fixed_point(q):  # bisection on F − F_model(p, κ + c·F), one sample at a time
         out = []
@@ -163,6 +163,43 @@ def test_compliance_force_and_its_derivatives_are_those_of_the_fixed_point(theta
         down[j] -= h
         np.testing.assert_allclose(jac[:, j], (fixed_point(up) - fixed_point(down)) / (2 * h),
                                    rtol=1e-5, atol=1e-6)
+
+
+def test_a_model_with_effects_is_a_model_the_one_entry_fits(theta31):
+    """The diagnosis's refit model wraps the base model (``with_effects``): a ModelSpec with
+    names, units and the base's bounds, whose structured Jacobian is that of its
+    prediction, and which ``pamid.engine.solve`` fits like any model: noise-free Sárosi data
+    with a rig in series (c), a pressure-sensor offset (δ) and a linear drift (φ) give
+    back every constant from a start 2 % off."""
+    import jax.numpy as jnp
+
+    from pamid._effects._model import WithEffects, with_effects
+    from pamid._fit._spec import SAROSI, ModelSpec
+
+    model = with_effects(SAROSI, True, 1)
+    assert isinstance(model, ModelSpec) and isinstance(model, WithEffects)
+    assert model is with_effects(SAROSI, True, 1)  # one per arguments: programs reused
+    assert model.param_names == (*SAROSI.param_names, "c", "delta_kPa", "phi0")
+    assert model.param_units["c"] == "%/N" and model.param_units["delta_kPa"] == "kPa"
+    assert model.bounds[0][2] == -3.0 and model.bounds[1][-1] == np.inf
+
+    rng = np.random.default_rng(3)
+    n = 400
+    p_kpa = rng.uniform(100.0, 600.0, n)
+    kappa = rng.uniform(0.0, 22.0, n)
+    hours = np.linspace(0.0, 2.0, n)
+    truth = np.concatenate([theta31, [0.002, -6.0, 4.0]])
+    x = (*SAROSI.to_x(p_kpa, kappa), hours[:, None])
+    y = np.asarray(model.predict(jnp.asarray(truth), x))
+    np.testing.assert_allclose(model.jacobian(jnp.asarray(truth), x),
+                               jax.jacfwd(lambda q: model.predict(q, x))(jnp.asarray(truth)),
+                               rtol=1e-10, atol=1e-8)
+    data = pamid.FitData(x=tuple(jnp.asarray(a)[None] for a in x), y=jnp.asarray(y)[None],
+                         w=jnp.ones((1, n)), curve=jnp.zeros((1, n), jnp.int32))
+    theta, ok, _ = pamid.engine.solve(model, data, solver="levenberg-marquardt",
+                                      theta0=truth[None] * 1.02, max_steps=200)
+    assert ok[0]
+    np.testing.assert_allclose(theta[0], truth, rtol=1e-6)
 
 
 # -- physical bounds ---------------------------------------------------------------------------

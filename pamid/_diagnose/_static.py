@@ -53,6 +53,7 @@ from .._data._holdout import holdout_units
 from .._effects._base import Effect, FileContext, MuscleContext
 from .._effects._covariate import COVARIATE_DEGREE
 from .._effects._definitions import STATIC_EFFECT_DEFINITIONS, transforms
+from .._effects._model import transform_inputs, with_effects
 from .._effects._steps import moving_steps, rod_steps, time_since_step
 from .._fit._api import fit_least_squares
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
@@ -422,7 +423,7 @@ class StaticProblem:
             steps = np.zeros(len(f))
         speed = next((s for s in ("speed_mm_s", "speed_pct_s") if s in self.covariates), None)
         base = np.asarray(model_at(self.spec, self.theta0[i], x))
-        i_p, per_kpa = _inputs(self.spec)["pressure"]
+        i_p, per_kpa = transform_inputs(self.spec)["pressure"]
         slope = np.inf
         if per_kpa:  # ∂F/∂p in N/kPa, by a difference of 1 kPa
             up = list(x)
@@ -781,57 +782,6 @@ def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
     return blocks % n_folds
 
 
-def _inputs(spec) -> dict:
-    """Where a transform finds the model's inputs: the contraction's place in ``x`` and the
-    pressure's place with the model's pressure unit per kPa (``spec.to_x`` is linear)."""
-    cols = list(spec.columns)
-    io = {"contraction": cols.index(spec.contraction_column)
-          if spec.contraction_column in cols else min(1, len(cols) - 1)}
-    if "pressure_kPa" in cols:
-        i = cols.index("pressure_kPa")
-        one = spec.to_x(*[np.ones(1)] * len(cols))[i]
-        zero = spec.to_x(*[np.zeros(1)] * len(cols))[i]
-        io["pressure"] = (i, float(np.asarray(one - zero)[0]))
-    else:
-        io["pressure"] = (0, 0.0)
-    return io
-
-
-def _predict(spec, theta, tvals, x, implicit: bool):
-    """F_model with the transform effects (:func:`pamid._effects._definitions.transforms`) at
-    the constants ``tvals``: F = F_model(θ; T(x, F)), by Newton from the plain model where a
-    transform depends on the force (the rig's compliance: F = F_model(p, x + c·F))."""
-    io = _inputs(spec)
-    defs = transforms()
-
-    def model(f, theta, tvals):
-        xx = x
-        for d, v in zip(defs, tvals, strict=True):
-            xx = d.transform(xx, v, f, io)
-        return spec.predict(theta, xx)
-
-    if not implicit:
-        return model(spec.predict(theta, x), theta, tvals)
-    # Newton on F = g(F) with the constants held, so that the iterations carry no
-    # tangents; the derivatives in the constants are those of the fixed point (implicit
-    # function theorem), dF = ∂g/∂(θ, t) / (1 − ∂g/∂F), from one more evaluation of g at F.
-    # Carrying the tangents of every constant through the four Newton steps gives the same
-    # numbers (the derivative of four converged steps) at about four times the cost.
-    held = jax.lax.stop_gradient((theta, tvals))
-
-    def g_held(f):
-        return model(f, *held)
-
-    f = spec.predict(held[0], x)
-    for _ in range(4):
-        g, dg = jax.jvp(g_held, (f,), (jnp.ones_like(f),))
-        f = f - (f - g) / (1.0 - dg)
-    f = jax.lax.stop_gradient(f)
-    _, dg = jax.jvp(g_held, (f,), (jnp.ones_like(f),))
-    g = model(f, theta, tvals)
-    return f + (g - jax.lax.stop_gradient(g)) / (1.0 - jax.lax.stop_gradient(dg))
-
-
 #: Bytes of temporaries per sample of one lane in the compiled lane function: XLA's memory
 #: analysis of ``_solve_lanes_jit`` on the CPU (8 lanes of 10,000 samples) gave 400–590 B for
 #: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance
@@ -899,35 +849,31 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
 
 
 def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
-    """One lane's least-squares problem: the set's effect columns ``cols`` (masked by
-    ``colmask``) on top of the model, fitted to ``muscle``'s samples, all of them (``fold``
-    0) or all but fold ``fold − 1``. Returns (y, w, w_test, pred, normal): the model's
-    force ``pred(params)`` and ``normal(params)`` = (weighted residual, its Jacobian)."""
+    """One lane's least-squares problem: the model with effects
+    (:func:`pamid._effects._model.with_effects`: the transforms, then the set's effect
+    columns ``cols`` as linear slots, masked by ``colmask``), fitted to ``muscle``'s samples,
+    all of them (``fold`` 0) or all but fold ``fold − 1``. Returns (y, w, w_test, pred,
+    normal): the model's force ``pred(params)`` and ``normal(params)`` = (weighted
+    residual, its Jacobian)."""
     x_all, y_all, w_all, fold_all, feat_all, _ = shared
-    x = tuple(xi[muscle] for xi in x_all)
     y = y_all[muscle]
     held = (fold_all[muscle] == fold - 1) & (fold > 0)
     w = jnp.where(held, 0.0, w_all[muscle])
     w_test = jnp.where(held, w_all[muscle], 0.0)
     feats = jnp.take(feat_all[muscle, fold], cols, axis=1)
     n_tr = len(transforms())
-    k = spec.n_params
     sw = jnp.sqrt(w)
     # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
     # linear slots'; masked constants stay at zero.
-    lin = feats * colmask[None, n_tr:]
+    x = (*(xi[muscle] for xi in x_all), feats * colmask[None, n_tr:])
+    model = with_effects(spec, with_compliance, cols.shape[0])
 
     def pred(params):
-        theta, tv, phi = params[:k], params[k:k + n_tr], params[k + n_tr:]
-        return _predict(spec, theta, tv, x, with_compliance) + lin @ phi
+        return model.predict(params, x)
 
     def normal(params):
         r = sw * (y - pred(params))
-        # The effects' constants enter linearly: their Jacobian columns are the features;
-        # only the base constants (and c) need forward-mode derivatives of the model.
-        jac_nl = jax.jacfwd(
-            lambda tc: _predict(spec, tc[:k], tc[k:], x, with_compliance))(params[: k + n_tr])
-        return r, -jnp.concatenate([jac_nl, lin], axis=1) * sw[:, None]
+        return r, -model.jacobian(params, x) * sw[:, None]
 
     return y, w, w_test, pred, normal
 
