@@ -65,7 +65,7 @@ from .._lanes._sharding import lane_devices
 from .._solvers import (
     CONVERGED,
     MAX_STEPS,
-    levenberg_marquardt,
+    fit_lane,
     newton_decrement,
     restrict,
 )
@@ -852,9 +852,8 @@ def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
     """One lane's least-squares problem: the model with effects
     (:func:`pamid._effects._model.with_effects`: the transforms, then the set's effect
     columns ``cols`` as linear slots, masked by ``colmask``), fitted to ``muscle``'s samples,
-    all of them (``fold`` 0) or all but fold ``fold − 1``. Returns (y, w, w_test, pred,
-    normal): the model's force ``pred(params)`` and ``normal(params)`` = (weighted
-    residual, its Jacobian)."""
+    all of them (``fold`` 0) or all but fold ``fold − 1``. Returns (model, x, y, w,
+    w_test)."""
     x_all, y_all, w_all, fold_all, feat_all, _ = shared
     y = y_all[muscle]
     held = (fold_all[muscle] == fold - 1) & (fold > 0)
@@ -862,25 +861,16 @@ def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
     w_test = jnp.where(held, w_all[muscle], 0.0)
     feats = jnp.take(feat_all[muscle, fold], cols, axis=1)
     n_tr = len(transforms())
-    sw = jnp.sqrt(w)
     # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
     # linear slots'; masked constants stay at zero.
     x = (*(xi[muscle] for xi in x_all), feats * colmask[None, n_tr:])
-    model = with_effects(spec, with_compliance, cols.shape[0])
-
-    def pred(params):
-        return model.predict(params, x)
-
-    def normal(params):
-        r = sw * (y - pred(params))
-        return r, -model.jacobian(params, x) * sw[:, None]
-
-    return y, w, w_test, pred, normal
+    return with_effects(spec, with_compliance, cols.shape[0]), x, y, w, w_test
 
 
 def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0,
           eff_lower, eff_upper):
-    """Solve one lane (:func:`_lane_problem`): the model's constants start at ``theta0``,
+    """Solve one lane (:func:`_lane_problem`) by the one least-squares entry of a lane
+    (:func:`pamid._solvers.fit_lane`): the model's constants start at ``theta0``,
     those where ``free`` is 0 held there, the others kept within the model's bounds
     (``shared``'s last entry). The effects' constants are kept within ``eff_lower`` …
     ``eff_upper`` (transforms, then slots): ±inf but for a constant declared ``held`` (a
@@ -888,8 +878,8 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
     reported as what it would have needed. Returns the constants, the SSE, the held-out
     SSE, the residual of every sample, whether it converged and the mask at the end (0
     where a constant is held)."""
-    y, w, w_test, pred, normal = _lane_problem(spec, with_compliance, shared, muscle, fold,
-                                               cols, colmask)
+    model, x, y, w, w_test = _lane_problem(spec, with_compliance, shared, muscle, fold, cols,
+                                           colmask)
     model_bounds = shared[5]
     n_tr = len(transforms())
     s = cols.shape[0]
@@ -898,10 +888,9 @@ def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, thet
     unbounded = jnp.full(theta0.shape, jnp.inf)
     lower, upper = (-unbounded, unbounded) if model_bounds is None else model_bounds
     bounds = (jnp.concatenate([lower, eff_lower]), jnp.concatenate([upper, eff_upper]))
-    floor = jnp.sum(w > 0) * ATOL_N**2
-    sol = levenberg_marquardt(normal, params0, mask, max_steps=MAX_ITER, rtol=RTOL,
-                              floor=floor, bounds=bounds)
-    resid_all = y - pred(sol.params)
+    sol = fit_lane(model, params0, x, y, w, mask, max_steps=MAX_ITER, rtol=RTOL,
+                   floor_per_sample=ATOL_N**2, bounds=bounds)
+    resid_all = y - model.predict(sol.params, x)
     sse_test = jnp.sum(w_test * resid_all**2)
     return sol.params, sol.sse, sse_test, resid_all, _reached(sol, w), sol.free
 
@@ -925,10 +914,11 @@ def _lane_statistics(spec, with_compliance, shared, muscle, cols, colmask, free,
     """(JᵀJ)⁻¹ and the numerical rank of a lane fitted to all its muscle's data, at its
     constants ``params``; the constants held there (``free`` 0: masked, or held on a bound
     at the end) have no variance and no rank."""
-    _, _, _, _, normal = _lane_problem(spec, with_compliance, shared, muscle, 0, cols,
-                                       colmask)
-    # pamid's one covariance and rank criterion (``pamid._inference``), held constants out
-    jtj_inv, rank, _ = unscaled_covariance(normal(params)[1], free)
+    model, x, _, w, _ = _lane_problem(spec, with_compliance, shared, muscle, 0, cols, colmask)
+    # pamid's one covariance and rank criterion (``pamid._inference``), held constants out;
+    # the Jacobian of the residual data − model
+    jac = -model.jacobian(params, x) * jnp.sqrt(w)[:, None]
+    jtj_inv, rank, _ = unscaled_covariance(jac, free)
     return jtj_inv, rank
 
 

@@ -49,13 +49,11 @@ def _solve_in_bounds(spec, theta0, x, y, w, lower, upper, max_steps):
     (:func:`pamid._solvers.levenberg_marquardt`): a constant on a bound whose gradient
     points out of the box is held there, one whose gradient points back in is free again,
     so a converged lane is a constrained optimum (Karush–Kuhn–Tucker)."""
-    from .._solvers import CONVERGED, levenberg_marquardt, linearised
+    from .._solvers import CONVERGED, fit_lane
 
     def one(theta0, x, y, w):
-        p0 = jnp.clip(theta0, lower, upper)
-        sol = levenberg_marquardt(linearised(lambda t: residuals(spec, t, x, y, w)), p0,
-                                  jnp.ones_like(p0), max_steps=max_steps, rtol=1e-12,
-                                  floor=jnp.sum(w > 0) * 1e-20, bounds=(lower, upper))
+        sol = fit_lane(spec, jnp.clip(theta0, lower, upper), x, y, w, max_steps=max_steps,
+                       rtol=1e-12, floor_per_sample=1e-20, bounds=(lower, upper))
         return sol.params, sol.result == CONVERGED, sol.steps
 
     return jax.vmap(one)(theta0, x, y, w)

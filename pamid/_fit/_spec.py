@@ -106,6 +106,13 @@ class ModelSpec:
         padding)."""
         raise NotImplementedError(f"{type(self).__name__} defines no start")
 
+    def jacobian(self, theta, x):
+        """∂predict/∂theta (n × p) at one set of constants: forward-mode automatic
+        differentiation, unless a subclass knows its structure."""
+        import jax
+
+        return jax.jacfwd(lambda th: self.predict(th, x))(theta)
+
     def to_x(self, *cols):
         """The model's ``x`` from its :attr:`columns` (NumPy arrays)."""
         return tuple(cols)

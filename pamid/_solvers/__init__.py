@@ -31,6 +31,7 @@ from ._levenberg_marquardt import (
     STALLED,
     LevenbergMarquardt,
     Solution,
+    fit_lane,
     levenberg_marquardt,
     linearised,
     newton_decrement,
@@ -72,9 +73,10 @@ def as_solver(solver) -> Solver:
 __all__ = [
     "CONVERGED", "MAX_STEPS", "NONFINITE", "RESULT_NAMES", "SOLVER_CLASSES", "STALLED",
     "GaussNewton", "JaxoptLevenbergMarquardt", "LevenbergMarquardt", "ProfileNewton",
-    "Solution", "Solver", "VariableProjection", "as_solver", "generic_derivatives",
-    "levenberg_marquardt", "linearised", "newton_decrement", "optimistix_lanes", "residuals",
-    "restrict", "sarosi_derivatives", "sarosi_fast_start", "sarosi_fit_at_a3",
+    "Solution", "Solver", "VariableProjection", "as_solver", "fit_lane",
+    "generic_derivatives", "levenberg_marquardt", "linearised", "newton_decrement",
+    "optimistix_lanes", "residuals", "restrict", "sarosi_derivatives", "sarosi_fast_start",
+    "sarosi_fit_at_a3",
     "sarosi_gauss_newton", "sarosi_statistics", "sarosi_variable_projection",
     "sarosi_variable_projection_start", "small_cholesky_solve", "solve_scaled",
 ]

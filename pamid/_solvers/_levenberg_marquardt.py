@@ -3,7 +3,10 @@ by ``jax.vmap``), and the solver value :class:`LevenbergMarquardt` (``--solver
 levenberg-marquardt``), which is optimistix's for unbounded fits.
 
 Every least-squares problem that pamid solves with its own loop goes through
-:func:`levenberg_marquardt`: the diagnosis refits (a model plus candidate effects, some
+:func:`levenberg_marquardt`; where the problem is a model value fitted to data (a
+:class:`~pamid._fit._spec.ModelSpec`: the fits within bounds, the diagnosis refits of a
+model with candidate effects), through :func:`fit_lane`, which builds its weighted residual
+from the model's ``predict`` and ``jacobian``. Its users: the diagnosis refits (a model plus candidate effects, some
 constants held by a mask so that every effect set of a batch has the same shape), the
 free-decay trajectory fits (linear, :mod:`pamid._decays._analysis`; with friction,
 :mod:`pamid._decays._coulomb`) and the joint's decay fits
@@ -184,6 +187,27 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
         jnp.where(small(g, h, sse), CONVERGED, jnp.where(lam > MAX_DAMPING, STALLED, MAX_STEPS)))
     return Solution(p, r, jac, sse, result, k, free)
 
+
+
+def fit_lane(model, theta0, x, y, w, mask=None, *, max_steps: int, rtol: float,
+             floor_per_sample: float = 0.0, bounds=None) -> Solution:
+    """The least-squares fit of one lane (batched by ``jax.vmap``): ``model`` (a model value,
+    :class:`pamid._fit._spec.ModelSpec`: ``predict`` and ``jacobian``) fitted to the data
+    ``(x, y, w)`` from ``theta0``, the constants where ``mask`` is 0 held (default: none),
+    within ``bounds`` where given, by :func:`levenberg_marquardt` on the weighted residual
+    w^½·(model − y). It stops where a Gauss–Newton step would lower the SSE by at most
+    ``rtol`` of itself plus ``floor_per_sample`` (an absolute tolerance squared) per sample
+    of weight > 0. The fits within bounds,
+    the diagnosis refits (a model with candidate effects,
+    :class:`pamid._effects._model.WithEffects`) and their covariance read this."""
+    sw = jnp.sqrt(w)
+
+    def linearise(p):
+        return sw * (model.predict(p, x) - y), model.jacobian(p, x) * sw[:, None]
+
+    mask = jnp.ones_like(theta0) if mask is None else mask
+    return levenberg_marquardt(linearise, theta0, mask, max_steps=max_steps, rtol=rtol,
+                               floor=jnp.sum(w > 0) * floor_per_sample, bounds=bounds)
 
 
 class LevenbergMarquardt(Solver):
