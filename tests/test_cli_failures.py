@@ -200,6 +200,32 @@ def test_help_is_no_error(capsys):
     assert capsys.readouterr().out.startswith("usage: pamid fit ")
 
 
+def _commands(parser, prefix=()):
+    """Every command and nested subcommand of ``parser``, as argument lists."""
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield [*prefix, name]
+                yield from _commands(sub, (*prefix, name))
+
+
+def test_every_help_text_is_shown(capsys):
+    """`pamid --help` and every (sub)command's --help print and exit 0: argparse formats a
+    help text with %, so a bare "95 % predictive" in one command's one-line help made the
+    top-level `pamid --help` end in a traceback."""
+    from pamid._cli import _parser
+
+    commands = [[], *_commands(_parser())]
+    assert ["predict"] in commands and ["simulate", "lifting-mass"] in commands
+    for args in commands:
+        with pytest.raises(SystemExit) as stop:
+            main([*args, "--help"])
+        assert stop.value.code == 0, args
+        assert capsys.readouterr().out.startswith(" ".join(["usage: pamid", *args])), args
+
+
 @pytest.mark.parametrize("command", ["fit", "diagnose", "compare"])
 def test_the_help_of_a_model_option_says_a_model_file_is_code(command, capsys):
     """`--model file.py:Class` runs whatever the file does; the help did not say so."""

@@ -19,7 +19,7 @@ def register(subparsers) -> None:
     pred = subparsers.add_parser(
         "predict",
         help="predict the force map of an untested muscle from a pooled fit "
-             "(pamid compare --pooled), with 95 % predictive intervals",
+             "(pamid compare --pooled), with 95 %% predictive intervals",
         description="Predict the force of a muscle of the given resting length (and other "
                     "descriptors) from a pooled model of `pamid compare DATA --pooled --out "
                     "DIR` (DIR/compare.json), with the 95 % predictive interval of a new "
