@@ -1,12 +1,13 @@
-"""The commands' JSON on the bundled file, against outputs recorded before a refactor (issue
-33: "fit, compare … give the same JSON as before to 1e-8 relative"). A change that moves a
+"""The commands' JSON on the bundled file and on a virtual decay file, against outputs
+recorded before a refactor (issue 33: "fit, compare, diagnose, damping … give the same JSON
+as before to 1e-8 relative"). A change that moves a
 number on purpose records the outputs again and says why in its commit:
 
     PAMID_RECORD_OUTPUTS=1 .venv/bin/python -m pytest -q tests/test_recorded_outputs.py
 
 Every key, string, flag and null must match; numbers to 1e-8 relative (1e-10 absolute near
 zero; a constant's interval ends to 1e-8 of the constant's size, :func:`_scale`). Only what
-differs from run to run is left out: the wall time and the input's path.
+differs from run to run is left out: the wall time and the input's path ("source", "file").
 """
 
 from __future__ import annotations
@@ -23,16 +24,38 @@ from pamid._cli import main
 ROOT = Path(__file__).resolve().parents[1]
 BUNDLED = ROOT / "pamid" / "data" / "sarosi_dmsp20_400_virtual.csv"
 RECORDED = Path(__file__).resolve().parent / "recorded"
-VOLATILE = {"seconds", "source"}
+VOLATILE = {"seconds", "source", "file"}
 RTOL, ATOL = 1e-8, 1e-10
 
+#: "{decay}": a virtual decay file of three trials with Coulomb friction (:func:`decay_file`).
 CASES = {
     "fit_sarosi": ["fit", str(BUNDLED), "--json"],
     "fit_cullinan": ["fit", str(BUNDLED), "--json", "--model", "cullinan"],
     "fit_lm_profile_cluster": ["fit", str(BUNDLED), "--json", "--solver", "levenberg-marquardt",
                                "--intervals", "wald,profile,cluster"],
     "compare_two": ["compare", str(BUNDLED), "--json", "--models", "sarosi,cullinan"],
+    "diagnose_bundled": ["diagnose", str(BUNDLED), "--json"],
+    "damping_decays": ["damping", "{decay}", "--inertia", "0.46", "--json"],
+    "diagnose_decays": ["diagnose", "{decay}", "--inertia", "0.46", "--json"],
 }
+
+
+@pytest.fixture(scope="module")
+def decay_file(tmp_path_factory) -> Path:
+    """Three 12-bit decays of a 2.2 Hz arm (J = 0.46 kg·m²) with 0.02 N·m of Coulomb
+    friction, from pamid's virtual bench with a fixed key: the decays' trajectory and
+    friction fits run on it."""
+    import jax
+
+    import pamid
+
+    osc = pamid.DampedOscillator.from_modal(0.05, 2.2, 0.46, equilibrium_rad=0.01)
+    protocol = pamid.DecayProtocol(n_trials=3, deflections_deg=(9.0, 6.0, -8.0),
+                                   noise_sd_rad=0.5 * 2 * math.pi / 4096, hold_s=0.2)
+    path = tmp_path_factory.mktemp("decays") / "decay.csv"
+    pamid.simulate_decays(jax.random.key(3), osc, protocol, coulomb_Nm=0.02).to_csv(
+        path, index=False)
+    return path
 
 
 def _scale(constant: dict) -> float:
@@ -68,8 +91,8 @@ def _differences(got, want, where="", scale=0.0) -> list[str]:
 
 
 @pytest.mark.parametrize("name", list(CASES))
-def test_json_as_recorded(name, capsys):
-    code = main(CASES[name])
+def test_json_as_recorded(name, capsys, decay_file):
+    code = main([a.replace("{decay}", str(decay_file)) for a in CASES[name]])
     payload = json.loads(capsys.readouterr().out)
     path = RECORDED / f"{name}.json"
     if os.environ.get("PAMID_RECORD_OUTPUTS") == "1":

@@ -113,10 +113,11 @@ import numpy as np
 import scipy.linalg
 
 from .._errors import BenchDataError
+from .._fit._spec import ModelSpec, scaled
 from .._inference import covariance, t_critical, unscaled_covariance, wald_interval
 from .._io import json_ready as _plain
 from .._sim._oscillator import DampedOscillator, oscillator_response
-from .._solvers import CONVERGED, levenberg_marquardt, linearised
+from .._solvers import CONVERGED, fit_lane
 
 __all__ = [
     "MIN_TRAVEL_NOISE",
@@ -861,14 +862,32 @@ def _model_angle(theta, t):
     return oscillator_response(osc, angle0, rate0, t)[0]
 
 
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Trajectory(ModelSpec):
+    """The linear damped oscillator's free response as a model: ``theta`` = :data:`FIT_NAMES`,
+    ``x`` = (time since the window's start, s,)."""
+
+    def predict(self, theta, x):
+        return _model_angle(theta, x[0])
+
+
+#: The trajectory fit's model, in constants divided by each lane's scale.
+TRAJECTORY = scaled(Trajectory(
+    name="trajectory", param_names=FIT_NAMES,
+    param_units={"zeta": "1", "omega_n_rad_s": "rad/s", "angle0_rad": "rad",
+                 "rate0_rad_s": "rad/s", "equilibrium_rad": "rad"},
+    units={"angle": "rad", "time": "s"}, columns=("time_s",),
+    source="J·β̈ + c·β̇ + k·(β − β_eq) = 0, free response (Cullinan section VI)",
+    output=("angle", "rad")))
+
+
 @functools.partial(jax.jit, static_argnames=("max_steps",))
 def _fit_batch(p0, scale, t, y, w, max_steps):
     def one(p0, scale, t, y, w):
-        linearise = linearised(lambda q: w * (_model_angle(q * scale, t) - y))
-        # pamid's one least-squares loop; the step would lower the SSE by at most 1e-12 of
-        # itself plus (1e-12 rad)² per sample.
-        sol = levenberg_marquardt(linearise, p0, jnp.ones_like(p0), max_steps=max_steps,
-                                  rtol=1e-12, floor=jnp.sum(w > 0) * 1e-24)
+        # pamid's one least-squares entry of a lane; the step would lower the SSE by at
+        # most 1e-12 of itself plus (1e-12 rad)² per sample.
+        sol = fit_lane(TRAJECTORY, p0, (t, scale), y, w, max_steps=max_steps, rtol=1e-12,
+                       floor_per_sample=1e-24)
         return sol.params * scale, sol.residual, sol.jac, sol.result == CONVERGED, sol.steps
 
     return jax.vmap(one)(p0, scale, t, y, w)

@@ -78,9 +78,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._effects._definitions import DECAY_EFFECT_DEFINITIONS
+from .._fit._spec import ModelSpec, scaled
 from .._inference import covariance, wald_interval
 from .._sim._oscillator import cos_sinc
-from .._solvers import CONVERGED, levenberg_marquardt, linearised
+from .._solvers import CONVERGED, fit_lane
 from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
 
 __all__ = [
@@ -223,6 +224,29 @@ def coulomb_response(
 # --------------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True, eq=False, kw_only=True)
+class FrictionResponse(ModelSpec):
+    """The decay with the candidate effects (:func:`_response`) as a model: ``theta`` =
+    :data:`FIT_NAMES`, ``x`` = (time since the window's start, s,); ``n_half`` half-cycles
+    of the friction's piecewise response."""
+
+    n_half: int
+
+    def predict(self, theta, x):
+        return _response(theta, x[0], self.n_half)
+
+
+@functools.cache
+def _friction_model(n_half: int) -> FrictionResponse:
+    return FrictionResponse(
+        n_half=n_half, name="decay_with_effects", param_names=FIT_NAMES,
+        param_units=dict(zip(FIT_NAMES, ("1", "rad/s", "rad", "rad/s", "rad", "rad",
+                                         "rad/s"), strict=True)),
+        units={"angle": "rad", "time": "s"}, columns=("time_s",),
+        source="the linear decay with Coulomb friction and a drifting equilibrium",
+        output=("angle", "rad"))
+
+
 @functools.partial(jax.jit, static_argnames=("n_half", "max_steps"))
 def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
     """One Levenberg–Marquardt solve per lane, by pamid's one masked loop
@@ -235,21 +259,13 @@ def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
     convergence flag and the number of steps.
     """
 
+    model = scaled(_friction_model(n_half))
+
     def one(p0, scale, mask, t, y, w):
-        def model_minus_data(p):
-            return _response(p * scale, t, n_half) - y
-
-        def linearise(p):
-            r, jac = linearised(model_minus_data)(p)
-            rw = jnp.where(w > 0, w * r, 0.0)  # NaN-safe: padding never counts
-            jw = jnp.where(w[:, None] > 0, w[:, None] * jac, 0.0)
-            return rw, jw
-
-        floor = jnp.sum(w > 0) * ATOL_RAD**2
-        sol = levenberg_marquardt(linearise, p0, mask, max_steps=max_steps, rtol=rtol,
-                                  floor=floor)
-        return sol.params, model_minus_data(sol.params), sol.jac, sol.result == CONVERGED, \
-            sol.steps
+        sol = fit_lane(model, p0, (t, scale), y, w, mask, max_steps=max_steps, rtol=rtol,
+                       floor_per_sample=ATOL_RAD**2)
+        return (sol.params, model.predict(sol.params, (t, scale)) - y, sol.jac,
+                sol.result == CONVERGED, sol.steps)
 
     return jax.vmap(one)(p0, scale, mask, t, y, w)
 

@@ -38,10 +38,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._fit._spec import ModelSpec, scaled
 from .._inference import standard_errors, wald_interval
 from .._sim._joint_sim import JointArm, arm_rhs, sealed_pressure_laws
 from .._sim._oscillator import rk4_scan
-from .._solvers import CONVERGED, levenberg_marquardt, linearised
+from .._solvers import CONVERGED, fit_lane
 
 __all__ = ["JOINT_FIT_NAMES", "JointDecayFit", "fit_joint_decays"]
 
@@ -81,17 +82,31 @@ def _unpack(names, p):
             d.get("angle_offset", 0.0))
 
 
+@dataclass(frozen=True, eq=False, kw_only=True)
+class ArmDecay(ModelSpec):
+    """One trial's decay of the arm (module text) as a model: ``theta`` = the constants
+    ``names`` (of :data:`JOINT_FIT_NAMES`), no inputs (the trial's n samples, dt apart)."""
+
+    arm: JointArm
+    dt: float
+    n: int
+    substeps: int
+
+    def predict(self, theta, x):
+        g, b0, v0, s, off = _unpack(self.param_names, theta)
+        return _simulate_angle(self.arm, g, b0, v0, s, self.dt, self.n, self.substeps) + off
+
+
 @eqx.filter_jit
 def _fit_batch(arm, names, method, p0, scale, y, w, dt, n, substeps, rtol, atol, max_steps):
-    def model(p):
-        g, b0, v0, s, off = _unpack(names, p)
-        return _simulate_angle(arm, g, b0, v0, s, dt, n, substeps) + off
+    model = scaled(ArmDecay(
+        arm=arm, dt=dt, n=n, substeps=substeps, name="joint_decay", param_names=names,
+        param_units={k: JOINT_FIT_NAMES[k] for k in names}, units={"angle": "rad"},
+        columns=(), source="the arm's decay, Cullinan eq. 3–5", output=("angle", "rad")))
 
     def one(p0, scale, y, w):
-        linearise = linearised(lambda q: w * (model(q * scale) - y))
-        sol = levenberg_marquardt(linearise, p0, jnp.ones_like(p0), max_steps=max_steps,
-                                  rtol=rtol, floor=jnp.sum(w > 0) * atol**2,
-                                  damping0=_DAMPING0[method])
+        sol = fit_lane(model, p0, (scale,), y, w, max_steps=max_steps, rtol=rtol,
+                       floor_per_sample=atol**2, damping0=_DAMPING0[method])
         ok = (sol.result == CONVERGED) & jnp.all(jnp.isfinite(sol.residual))
         return sol.params * scale, sol.residual, sol.jac, ok, sol.steps
 

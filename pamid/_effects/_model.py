@@ -104,6 +104,9 @@ class WithEffects(ModelSpec):
         theta_b, tvals, phi = self._split(theta)
         return self.transformed(theta_b, tvals, tuple(inputs)) + features @ phi
 
+    def value_and_jacobian(self, theta, x):
+        return self.predict(theta, x), self.jacobian(theta, x)
+
     def jacobian(self, theta, x):
         """∂F/∂theta (n × p): forward-mode derivatives of the base model and the transforms
         only; the slots' gains enter linearly, their columns are the features."""

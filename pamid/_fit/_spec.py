@@ -106,12 +106,17 @@ class ModelSpec:
         padding)."""
         raise NotImplementedError(f"{type(self).__name__} defines no start")
 
-    def jacobian(self, theta, x):
-        """∂predict/∂theta (n × p) at one set of constants: forward-mode automatic
-        differentiation, unless a subclass knows its structure."""
+    def value_and_jacobian(self, theta, x):
+        """(predict, ∂predict/∂theta (n × p)) at one set of constants, from one forward-mode
+        pass (the prediction is its primal), unless a subclass knows the structure."""
         import jax
 
-        return jax.jacfwd(lambda th: self.predict(th, x))(theta)
+        jac, value = jax.jacfwd(lambda th: (self.predict(th, x),) * 2, has_aux=True)(theta)
+        return value, jac
+
+    def jacobian(self, theta, x):
+        """∂predict/∂theta (n × p) at one set of constants (:meth:`value_and_jacobian`)."""
+        return self.value_and_jacobian(theta, x)[1]
 
     def to_x(self, *cols):
         """The model's ``x`` from its :attr:`columns` (NumPy arrays)."""
@@ -175,6 +180,28 @@ def _deprecated_fast_path(self) -> FastPath | None:
 
 
 ModelSpec.fast_path = property(_deprecated_fast_path)
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Scaled(ModelSpec):
+    """``base`` in its constants divided by a scale of each, given as the last input (the
+    lane's typical sizes): ``theta`` = constants / scale, ``x`` = (*base's x, scale), so
+    that a solver's steps, damping and tolerances see constants of order one. A model that
+    wraps a model: made by :func:`scaled`."""
+
+    base: ModelSpec
+
+    def predict(self, theta, x):
+        *inputs, scale = x
+        return self.base.predict(theta * scale, tuple(inputs))
+
+
+def scaled(base: ModelSpec) -> Scaled:
+    """:class:`Scaled` of ``base``, its names, units and source."""
+    return Scaled(base=base, name=f"{base.name}_scaled", param_names=base.param_names,
+                  param_units={n: f"{u} per unit of scale" for n, u in base.param_units.items()},
+                  units=dict(base.units), columns=(*base.columns, "scale"),
+                  source=f"{base.source}, constants divided by a scale", output=base.output)
 
 
 class ModelDefinitionError(ValueError):

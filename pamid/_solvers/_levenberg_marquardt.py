@@ -3,14 +3,14 @@ by ``jax.vmap``), and the solver value :class:`LevenbergMarquardt` (``--solver
 levenberg-marquardt``), which is optimistix's for unbounded fits.
 
 Every least-squares problem that pamid solves with its own loop goes through
-:func:`levenberg_marquardt`; where the problem is a model value fitted to data (a
-:class:`~pamid._fit._spec.ModelSpec`: the fits within bounds, the diagnosis refits of a
-model with candidate effects), through :func:`fit_lane`, which builds its weighted residual
-from the model's ``predict`` and ``jacobian``. Its users: the diagnosis refits (a model plus candidate effects, some
-constants held by a mask so that every effect set of a batch has the same shape), the
-free-decay trajectory fits (linear, :mod:`pamid._decays._analysis`; with friction,
-:mod:`pamid._decays._coulomb`) and the joint's decay fits
-(:mod:`pamid._decays._joint_fit`), and the static fits within bounds
+:func:`levenberg_marquardt`, and every one of them is a model value fitted to a lane's data
+through :func:`fit_lane` (a :class:`~pamid._fit._spec.ModelSpec`, whose ``predict`` and
+``value_and_jacobian`` make the weighted residual): the diagnosis refits (a model with
+candidate effects, :class:`~pamid._effects._model.WithEffects`, some constants held by a
+mask so that every effect set of a batch has the same shape), the free-decay trajectory
+fits (linear, :mod:`pamid._decays._analysis`; with friction, :mod:`pamid._decays._coulomb`)
+and the joint's decay fits (:mod:`pamid._decays._joint_fit`), in constants divided by a
+scale (:class:`~pamid._fit._spec.Scaled`), and the static fits within bounds
 (``pamid._fit._least_squares._solve_in_bounds``). Static force laws without bounds are
 solved by the solver value the user chose (:mod:`pamid._solvers`): optimistix's, jaxopt's,
 or a model's registered written-out kernels (Sárosi's Gauss–Newton).
@@ -190,7 +190,7 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
 
 
 def fit_lane(model, theta0, x, y, w, mask=None, *, max_steps: int, rtol: float,
-             floor_per_sample: float = 0.0, bounds=None) -> Solution:
+             floor_per_sample: float = 0.0, bounds=None, damping0: float = 1e-3) -> Solution:
     """The least-squares fit of one lane (batched by ``jax.vmap``): ``model`` (a model value,
     :class:`pamid._fit._spec.ModelSpec`: ``predict`` and ``jacobian``) fitted to the data
     ``(x, y, w)`` from ``theta0``, the constants where ``mask`` is 0 held (default: none),
@@ -199,15 +199,21 @@ def fit_lane(model, theta0, x, y, w, mask=None, *, max_steps: int, rtol: float,
     ``rtol`` of itself plus ``floor_per_sample`` (an absolute tolerance squared) per sample
     of weight > 0. The fits within bounds,
     the diagnosis refits (a model with candidate effects,
-    :class:`pamid._effects._model.WithEffects`) and their covariance read this."""
+    :class:`pamid._effects._model.WithEffects`) and the free-decay fits (trajectory,
+    friction, joint: :class:`pamid._fit._spec.Scaled` models) call it. Rows of weight 0
+    never count, even where the model is not finite there (padding)."""
     sw = jnp.sqrt(w)
+    on = w > 0
 
     def linearise(p):
-        return sw * (model.predict(p, x) - y), model.jacobian(p, x) * sw[:, None]
+        value, jac = model.value_and_jacobian(p, x)
+        return (jnp.where(on, sw * (value - y), 0.0),
+                jnp.where(on[:, None], jac * sw[:, None], 0.0))
 
     mask = jnp.ones_like(theta0) if mask is None else mask
     return levenberg_marquardt(linearise, theta0, mask, max_steps=max_steps, rtol=rtol,
-                               floor=jnp.sum(w > 0) * floor_per_sample, bounds=bounds)
+                               floor=jnp.sum(on) * floor_per_sample, bounds=bounds,
+                               damping0=damping0)
 
 
 class LevenbergMarquardt(Solver):
