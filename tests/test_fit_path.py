@@ -227,6 +227,23 @@ def test_profile_without_the_covariance_starts_in_the_constant_alone(small_bench
     np.testing.assert_array_less(np.abs(hi - fit.ci95_profile[..., 1]), 1e-6 * width)
 
 
+
+def test_profile_settings_are_the_solvers(small_bench):
+    """The profile's Newton iteration is a solver value: ``solver=ProfileNewton(max_steps=…)``
+    gives the same ends as the deprecated keyword, which warns."""
+    from pamid._fit import _intervals
+    from pamid._solvers import ProfileNewton
+
+    fit = pamid.fit_least_squares(small_bench.data, intervals=("wald",))
+    s2 = fit.sse / fit.dof
+    args = (fit.spec, small_bench.data, fit.theta, fit.se, s2, fit.sse, fit.dof)
+    lo, hi, ok = _intervals.profile(*args, solver=ProfileNewton(max_steps=30))
+    with pytest.warns(DeprecationWarning, match="solver=ProfileNewton"):
+        lo2, hi2, ok2 = _intervals.profile(*args, max_steps=30)
+    assert np.all(ok) and np.array_equal(ok, ok2)
+    np.testing.assert_array_equal(lo, lo2)
+    np.testing.assert_array_equal(hi, hi2)
+
 # ----------------------------------------------------------------------------------------
 # What the command imports
 # ----------------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -50,8 +51,10 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     """Profile-likelihood (profile-t) intervals: for constant j, the values v for which the
     best fit with θ_j = v has (S(v) − S_min)/s² ≤ t² (Bates & Watts). Each end is found by
     Newton's method on the conditions that define it (``solver``, a
-    :class:`pamid._solvers.ProfileNewton`; ``max_steps``, ``tol``, ``check`` replace its
-    settings), all ends of all muscles in one batched call.
+    :class:`pamid._solvers.ProfileNewton` value with its settings), all ends of all muscles
+    in one batched call. ``max_steps``, ``tol`` and ``check`` are deprecated: they replace
+    the solver's settings, with a ``DeprecationWarning``
+    (``solver=ProfileNewton(max_steps=...)`` says it).
 
     ``jtj_inv`` (M, p, p), (JᵀJ)⁻¹ at the optimum, places the starts at the ends of the
     linearised model; without it they are θ̂ ± t·se in the constant alone.
@@ -65,8 +68,13 @@ def profile(spec: ModelSpec, data: FitData, theta, se, s2, sse, dof, level: floa
     that did not converge is NaN (an unbounded or badly determined constant).
     """
     solver = ProfileNewton() if solver is None else solver
-    settings = {"max_steps": max_steps, "tol": tol, "check": check}
-    solver = dataclasses.replace(solver, **{k: v for k, v in settings.items() if v is not None})
+    settings = {k: v for k, v in {"max_steps": max_steps, "tol": tol, "check": check}.items()
+                if v is not None}
+    if settings:
+        warnings.warn(f"profile({', '.join(f'{k}=' for k in settings)}) is deprecated: pass "
+                      "solver=ProfileNewton(...) with those settings", DeprecationWarning,
+                      stacklevel=2)
+        solver = dataclasses.replace(solver, **settings)
     theta = np.asarray(theta, dtype=np.float64)
     tcrit = t_critical(dof, level)
     if jtj_inv is None:
