@@ -300,6 +300,10 @@ def test_written_out_kernels_are_found_by_the_model_class():
     assert spec_from_model(Sarosi).kernels is SAROSI.kernels is KERNELS[Sarosi]()
     assert spec_from_model(Sarosi, params=("a1", "a2", "a3", "a4", "a5")).kernels is None
     assert spec_from_model(table_3_1()).kernels is None
+    # pamid's own classes key their programs on disk by the view's data; a view made from
+    # an instance starts from its values, which no key names, and keys none
+    assert spec_from_model(Sarosi).program_key == SAROSI.program_key is not None
+    assert spec_from_model(table_3_1()).program_key is None
     generic = dataclasses.replace(SAROSI, written_out=False)
     assert generic.kernels is None and generic.program_key != SAROSI.program_key
     # The registered start stays: only the solvers and statistics are generic.

@@ -390,7 +390,9 @@ class ModelView(ModelSpec):
 
     @functools.cached_property
     def program_key(self) -> tuple | None:
-        if not self._own_code:
+        # A view made from an instance starts from its values, which the key would not
+        # name: its programs are not kept on disk.
+        if not self._own_code or self.from_instance:
             return None
         cls = self.model_class
         start = self.start_with
