@@ -512,8 +512,10 @@ class _Registry(MutableMapping):
     def __init__(self):
         self._entries: dict[str, object] = {}
 
-    def add(self, name: str, model, **options) -> None:
-        self._entries[name] = (model, options)
+    def add(self, key: str, model, **options) -> None:
+        """Register ``model`` (a ForceModel class) under ``key`` with the options of its
+        view (:func:`spec_from_model`: ``params``, ``inputs``, ``name``, ``source`` …)."""
+        self._entries[key] = (model, options)
 
     def __getitem__(self, name: str) -> ModelSpec:
         entry = self._entries[name]
