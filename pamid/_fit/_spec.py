@@ -386,7 +386,8 @@ class ModelView(ModelSpec):
     def _own_code(self) -> bool:
         """pamid's own classes are named alike in every process (and their code is in the
         hash that keys the programs kept on disk); a user's are not."""
-        return self.model_class.__module__.split(".")[0] == "pamid"
+        cls = self.model_class
+        return cls is not None and cls.__module__.split(".")[0] == "pamid"
 
     @functools.cached_property
     def program_key(self) -> tuple | None:
