@@ -71,7 +71,7 @@ def run(args) -> int:
 
     # Closing the loop: what does eq. 2.1 miss in these data, and what does adding it gain?
     from .._diagnose._api import diagnose
-    from .._report._diagnosis import plot_diagnosis_residuals
+    from .._report._diagnosis import constant_text, plot_diagnosis_residuals
     from .._report._fit import write_fit_plots
 
     diag = diagnose(bench)
@@ -85,8 +85,7 @@ def run(args) -> int:
           f"{diag.max_error_after:.2f} N; unexplained: {', '.join(diag.unexplained) or 'nothing'}")
     for name, consts in diag.constants[0]["effects"].items():
         for pname, c in consts.items():
-            lo, hi = c["ci95"]
-            print(f"  {name} {pname} = {c['value']:.4g} {c['unit']} [{lo:.4g}, {hi:.4g}]")
+            print(f"  {name} {pname} = {constant_text(c)}")
 
     out.mkdir(parents=True, exist_ok=True)
     plots = write_fit_plots(result, bench, out, 1)

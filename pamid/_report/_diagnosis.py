@@ -52,9 +52,17 @@ def _judge_lines(sel: dict) -> list[str]:
     return lines
 
 
-def _ci(c: dict) -> str:
+def constant_text(c: dict) -> str:
+    """A diagnosed constant as text: its value and unit, then its 95 % interval, or why it
+    has none (held on its physical bound by the fit, as a slip element at 0 is: absent;
+    chosen over a grid, as the transient's τ is)."""
+    value = f"{c['value']:.4g} {c['unit']}"
+    if c.get("held_at_bound"):
+        return f"{value}  (held at its bound: no interval)"
+    if c.get("chosen_over") == "grid":
+        return f"{value}  (chosen over a grid: no interval)"
     lo, hi = c["ci95"]
-    return f"{c['value']:.4g} {c['unit']}  [{lo:.4g}, {hi:.4g}]"
+    return f"{value}  [{lo:.4g}, {hi:.4g}]"
 
 
 def diagnosis_report(d) -> str:
@@ -151,7 +159,8 @@ def diagnosis_report(d) -> str:
                 width = max([12] + [len(pname) for pname in consts])
                 for pname, c in consts.items():
                     if pname not in held:
-                        lines.append(f"     {group:<10} {name:<22} {pname:<{width}} {_ci(c)}")
+                        lines.append(f"     {group:<10} {name:<22} {pname:<{width}} "
+                                     f"{constant_text(c)}")
                 if held:
                     lines.append(f"     {group:<10} {name:<22} on its bound by the fit "
                                  "(0: absent): " + ", ".join(held))
