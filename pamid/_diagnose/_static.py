@@ -57,7 +57,7 @@ from .._effects._model import transform_inputs, with_effects
 from .._effects._steps import moving_steps, rod_steps, time_since_step
 from .._fit._api import fit_least_squares
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
-from .._fit._spec import ModelSpec, builtin_key
+from .._fit._spec import ModelSpec
 from .._inference import residual_variance, unscaled_covariance, wald_interval
 from .._lanes import _export_cache
 from .._lanes._batch import items_per_call, map_lanes, pack
@@ -835,7 +835,7 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
         idx = np.minimum(np.arange(size), n - 1)
         lanes = tuple(a[idx] for a in lanes)
     run = functools.partial(fn, spec, with_compliance)
-    key = builtin_key(spec)
+    key = spec.program_key
     if key is not None and len(lane_devices()) == 1:
         # Through the exported program on disk when the command line keeps them: a new
         # process then skips tracing the lanes (most of a warm diagnosis of 1,000 rows).

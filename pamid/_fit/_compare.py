@@ -41,7 +41,7 @@ from .._errors import BenchDataError
 from .._lanes._batch import FitData, map_lanes, pack_rows
 from ._api import FitResult, bench_to_fit_data, fit_least_squares
 from ._compare_options import BIC_FORMULA, MIN_TRIALS_FOR_TRIAL_CV, N_FOLDS
-from ._spec import MODELS, ModelSpec, builtin_key, get_model
+from ._spec import MODELS, ModelSpec, get_model
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -265,7 +265,7 @@ def _vmapped(predict: Callable) -> Callable:
 
 def predict_lanes(spec: ModelSpec, theta, x) -> np.ndarray:
     """The model of every lane at its own constants, in chunks of lanes."""
-    name = builtin_key(spec)
+    name = spec.program_key
     return map_lanes(_vmapped(spec.predict), np.asarray(theta, dtype=np.float64), x,
                      cache_key=None if name is None else ("predict", *name))
 

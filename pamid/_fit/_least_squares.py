@@ -29,7 +29,7 @@ import numpy as np
 from .._inference import unscaled_covariance
 from .._lanes._batch import FitData, map_lanes, padded_rows
 from .._solvers import SOLVER_CLASSES, Solver, as_solver, residuals  # noqa: F401
-from ._spec import ModelSpec, builtin_key
+from ._spec import ModelSpec
 
 #: The solvers' names (``--solver``); the solvers themselves are values (``_solvers``).
 SOLVERS = tuple(SOLVER_CLASSES)
@@ -209,7 +209,7 @@ _TRACING_ERRORS = (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayCon
 
 def _key(what: str, spec: ModelSpec, *static) -> tuple | None:
     """The ``cache_key`` of a batched call (None, no caching, for specs not pamid's own)."""
-    name = builtin_key(spec)
+    name = spec.program_key
     return None if name is None else (what, *name, *static)
 
 
@@ -374,7 +374,7 @@ def _model_at(spec, theta, x):
 
 @functools.partial(jax.jit, static_argnames="spec")
 def _model_jacobian(spec, theta, x):
-    return jax.jacfwd(lambda th: spec.predict(th, x))(theta)
+    return spec.jacobian(theta, x)
 
 
 def _repeat_lanes(data: FitData, k: int) -> FitData:

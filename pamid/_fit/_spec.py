@@ -587,13 +587,6 @@ def model_names() -> tuple[str, ...]:
     return tuple(MODELS)
 
 
-def builtin_key(spec: ModelSpec) -> tuple | None:
-    """A name for a spec of pamid's own models that is the same in every process (the key of
-    its exported programs, ``_export_cache``); None for any other spec
-    (:attr:`ModelSpec.program_key`)."""
-    return spec.program_key
-
-
 def get_model(name, frame=None) -> ModelSpec:
     """The spec for a model: a name of pamid's own (for "cullinan", with G when the data
     carry a velocity), ``"path/to/file.py:ClassName"`` for a user's, a

@@ -33,7 +33,6 @@ from ._levenberg_marquardt import (
     Solution,
     fit_lane,
     levenberg_marquardt,
-    linearised,
     newton_decrement,
     restrict,
 )
@@ -74,7 +73,7 @@ __all__ = [
     "CONVERGED", "MAX_STEPS", "NONFINITE", "RESULT_NAMES", "SOLVER_CLASSES", "STALLED",
     "GaussNewton", "JaxoptLevenbergMarquardt", "LevenbergMarquardt", "ProfileNewton",
     "Solution", "Solver", "VariableProjection", "as_solver", "fit_lane",
-    "generic_derivatives", "levenberg_marquardt", "linearised", "newton_decrement",
+    "generic_derivatives", "levenberg_marquardt", "newton_decrement",
     "optimistix_lanes", "residuals", "restrict", "sarosi_derivatives", "sarosi_fast_start",
     "sarosi_fit_at_a3",
     "sarosi_gauss_newton", "sarosi_statistics", "sarosi_variable_projection",

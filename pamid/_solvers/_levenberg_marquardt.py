@@ -90,17 +90,6 @@ def restrict(g, h, mask):
     return mask * g, jnp.where(both > 0, h, jnp.eye(mask.shape[0], dtype=h.dtype))
 
 
-def linearised(residual: Callable) -> Callable:
-    """``p -> (r, J)`` for :func:`levenberg_marquardt` from ``residual`` (``p -> r``): the
-    residual and its Jacobian from one forward-mode pass (the residual is its primal)."""
-
-    def linearise(p):
-        jac, r = jax.jacfwd(lambda q: (residual(q),) * 2, has_aux=True)(p)
-        return r, jac
-
-    return linearise
-
-
 def newton_decrement(g, h):
     """gᵀ(JᵀJ)⁻¹g, the decrease of the SSE that a Gauss–Newton step would give, with
     directions of relative curvature below :data:`DECREMENT_RIDGE` left out (a ridge on
