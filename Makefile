@@ -16,8 +16,8 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# Once per installation: compile `pamid fit`'s programs for one-muscle files of every size
-# class up to 4096 rows into the disk cache (PAMID_CACHE_DIR, default ~/.cache/pamid), so
+# Once per installation: compile the programs of `pamid fit`, `compare` and `diagnose` for
+# one-muscle files of every size class up to 4096 rows into the disk cache (PAMID_CACHE_DIR, default ~/.cache/pamid), so
 # that a lab's first file starts warm (README, "The first run"). Not part of `make test`,
 # whose runs keep a cache of their own.
 $(WARM): $(STAMP)

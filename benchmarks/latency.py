@@ -15,8 +15,15 @@ class (``pamid._lanes._batch.padded_rows``) but another row count. Per command:
   installing without `pamid warm-up`);
 - **new file, warm class**: then on B (a row count never seen, its class compiled by A);
 - **same file again**: on B once more;
-- **after set-up** (without ``--skip-setup``): `pamid fit` on a third file C of n rows with
-  only what `pamid warm-up` (the README's set-up, `make demo`) left in a fresh cache.
+- **after set-up** (without ``--skip-setup``): the command on a third file C of n rows
+  with only what `pamid warm-up` (the README's set-up, `make demo`: fit, compare and
+  diagnose on its virtual sweeps) left in a fresh cache.
+
+Without ``--skip-measured``, where ``../shared/data`` is beside the repository: the same
+after set-up on two measured files that are not shaped like warm-up's virtual sweeps: the
+static force map of Martens & Boblan 2017 (85 rows, no time column) and one muscle of the
+AARL isometric tests (every 8th row of ``Festo10mm_lc20cm``: 1,369 rows, trials, valve
+transients).
 
 Beside each, in the same run: ``baseline_scipy_wald.py`` on the same file (pandas +
 ``curve_fit`` from three starts, Wald intervals: the script a user writes; median of
@@ -95,6 +102,8 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3, help="runs of the SciPy script")
     parser.add_argument("--skip-10k", action="store_true")
     parser.add_argument("--skip-setup", action="store_true")
+    parser.add_argument("--skip-measured", action="store_true",
+                        help="skip the measured files of ../shared/data after set-up")
     parser.add_argument("--json", metavar="PATH", help="also write every number as JSON")
     args = parser.parse_args(argv)
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -133,8 +142,8 @@ def main(argv=None) -> int:
             setup_cache = tmp / "cache-setup"
             rec = run([*pamid, "warm-up"], env_with(setup_cache), tmp, timeout=3600)
             result["setup_s"] = round(rec["wall_s"], 1)
-            print(f"set-up (pamid warm-up, fit): {rec['wall_s']:.1f} s, exit {rec['rc']}",
-                  flush=True)
+            print(f"set-up (pamid warm-up: fit, compare, diagnose): {rec['wall_s']:.1f} s, "
+                  f"exit {rec['rc']}", flush=True)
         for n in sizes:
             folder = tmp / f"n{n}"
             folder.mkdir()
@@ -148,11 +157,29 @@ def main(argv=None) -> int:
                     rec = run([*pamid, command, str(files[key]), "--json"], env, folder)
                     record(command, n, scenario, files[key], rec["wall_s"], rec["rc"],
                            scipy[key])
-                if setup_cache is not None and command == "fit":
+                if setup_cache is not None:
                     rec = run([*pamid, command, str(files["C"]), "--json"],
                               env_with(setup_cache), folder)
                     record(command, n, "after set-up", files["C"], rec["wall_s"], rec["rc"],
                            scipy["C"])
+        shared = ROOT.parent / "shared" / "data"
+        if setup_cache is not None and not args.skip_measured and shared.is_dir():
+            import pandas as pd
+
+            folder = tmp / "measured"
+            folder.mkdir()
+            martens = shared / "martens_dmsp10_250.csv"
+            aarl = pd.read_csv(shared / "aarl_festo10mm_isometric.csv")
+            one = folder / "aarl_lc20cm_every8.csv"
+            aarl[aarl["muscle"] == "Festo10mm_lc20cm"].iloc[::8].to_csv(one, index=False)
+            for path in (martens, one):
+                n = len(pd.read_csv(path))
+                ref = scipy_time(py, path, base_env, folder, args.rounds)
+                for command in commands:
+                    rec = run([*pamid, command, str(path), "--json"], env_with(setup_cache),
+                              folder)
+                    record(command, n, "measured, after set-up", path, rec["wall_s"],
+                           rec["rc"], ref)
         if not args.skip_10k:
             sys.path.insert(0, str(HERE))
             from fit_batch import make_data

@@ -95,28 +95,47 @@ def test_a_new_file_of_a_known_size_class_compiles_nothing(command, two_files, c
 
 
 def test_warm_up_leaves_the_classes_compiled(cli_env, tmp_path):
-    """`pamid warm-up` (the README's set-up, `make demo`) compiles `pamid fit` for every
-    class up to --max-rows; a lab's first file of such a class then compiles nothing."""
+    """`pamid warm-up` (the README's set-up, `make demo`) compiles, on its virtual sweeps,
+    the programs of every class up to --max-rows; a lab's first file of such a class then
+    compiles nothing: a file like the ones warm-up ran, and a force map of other columns
+    (no time, no direction: fewer covariates, fewer folds, smaller effect sets), whose
+    diagnosis lanes run in the one shape of a small diagnosis (``SMALL_SLOTS``)."""
     import subprocess
 
     from conftest import PAMID
 
     env = {**cli_env, "JAX_EXPLAIN_CACHE_MISSES": "1", "PAMID_CACHE_DIR": str(tmp_path / "c")}
-    warm = subprocess.run([*PAMID, "warm-up", "--max-rows", "100", "--json"],
+    warm = subprocess.run([*PAMID, "warm-up", "--max-rows", "64", "--commands",
+                           "fit,diagnose", "--json"],
                           capture_output=True, text=True, env=env, timeout=900)
     assert warm.returncode == 0, warm.stderr[-2000:]
     doc = json.loads(warm.stdout)
-    assert doc["classes_rows"] == [64, 128] and not doc["failed"]
-    assert [r["command"] for r in doc["runs"]] == ["fit", "fit"]
+    assert doc["classes_rows"] == [64] and not doc["failed"]
+    assert [r["command"] for r in doc["runs"]] == ["fit", "diagnose"]
     assert "warm-up done" in warm.stderr  # progress, in pamid's words
     frame = pd.read_csv(BUNDLED)
-    path = tmp_path / "lab.csv"
-    frame.iloc[::3].to_csv(path, index=False)  # 100 rows: a file nobody ran
-    assert padded_rows(len(frame.iloc[::3])) == 128
-    fit = subprocess.run([*PAMID, "fit", str(path), "--json"], capture_output=True,
-                         text=True, env=env, timeout=900)
-    assert fit.returncode == 0, fit.stderr[-2000:]
-    assert _misses(fit.stderr) == []
+    lab, grid = tmp_path / "lab.csv", tmp_path / "map.csv"
+    frame.iloc[::5].to_csv(lab, index=False)  # 60 rows: a file nobody ran
+    frame.iloc[::5][["muscle", "pressure_kPa", "contraction_pct", "force_N"]].to_csv(
+        grid, index=False)
+    assert padded_rows(len(frame.iloc[::5])) == 64
+    for command, path in (("fit", lab), ("diagnose", lab), ("diagnose", grid)):
+        proc = subprocess.run([*PAMID, command, str(path), "--json"], capture_output=True,
+                              text=True, env=env, timeout=900)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert _misses(proc.stderr) == [], (command, path.name)
+
+
+def test_warm_up_compiles_every_command_by_default():
+    """The set-up compiles what a lab runs on its first file: fit, compare and diagnose."""
+    import argparse
+
+    from pamid._commands import warmup
+
+    parser = argparse.ArgumentParser()
+    warmup.register(parser.add_subparsers())
+    args = parser.parse_args(["warm-up"])
+    assert args.commands.split(",") == ["fit", "compare", "diagnose"]
 
 
 def test_warm_up_refuses_what_it_cannot_do(cli_env, tmp_path):

@@ -5,8 +5,8 @@ of two for a file of one muscle), and the programs of a class, once compiled, ar
 disk (``PAMID_CACHE_DIR``) for every later file of that class. This command runs `pamid
 fit`, `compare` and `diagnose`, exactly as a user runs them (each a process of its own,
 ``--json``), on a virtual one-muscle file of every class up to ``--max-rows``, so that the
-first real file of each class starts warm. The README's set-up (`make demo`) runs it for
-`pamid fit`; the files are virtual benches of Sárosi Table 3-1's muscle (the protocol of
+first real file of each class starts warm. The README's set-up (`make demo`) runs it; the
+files are virtual benches of Sárosi Table 3-1's muscle (the protocol of
 the bundled data set), written to a temporary folder and removed.
 """
 
@@ -31,9 +31,9 @@ def register(subparsers) -> None:
         help="compile the programs of one-muscle files of every size class, once",
         description=__doc__.split("\n\n")[1].replace("\n", " "),
     )
-    warm.add_argument("--commands", default="fit",
+    warm.add_argument("--commands", default=",".join(COMMANDS),
                       help="comma-separated commands to compile for: fit, compare, diagnose "
-                           "(default fit)")
+                           "(default all three)")
     warm.add_argument("--max-rows", type=int, default=4096, dest="max_rows", metavar="N",
                       help="largest file to compile for, in rows (default 4096: the classes "
                            "64, 128, …, 4096)")

@@ -60,7 +60,7 @@ from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._spec import ModelSpec
 from .._inference import residual_variance, unscaled_covariance, wald_interval
 from .._lanes import _export_cache
-from .._lanes._batch import items_per_call, map_lanes, pack
+from .._lanes._batch import SMALL_BATCH_SAMPLES, items_per_call, map_lanes, pack
 from .._lanes._sharding import lane_devices
 from .._solvers import (
     CONVERGED,
@@ -93,6 +93,15 @@ IN_MODEL_RTOL = 1e-8
 MIN_SLOTS = 8
 #: Fewest columns of the feature matrix (padded to a power of two, see ``_fill_features``).
 MIN_FEATURES = 16
+#: A small diagnosis (muscles × rows ≤ ``SMALL_BATCH_SAMPLES``: a lab's file of one or a
+#: few muscles, where compiling is nearly all of the time) runs its lanes in one shape per
+#: size class of rows, whatever the file's columns and curves: at least ``SMALL_SLOTS``
+#: slots, ``SMALL_FEATURES`` feature columns and room for ``N_FOLDS`` folds. The programs
+#: `pamid warm-up` compiles on its virtual sweeps then serve a force map (16 features, 4
+#: folds, sets of ≤ 8 constants) or another lab's isometric tests of that class; the slots
+#: masked more cost the small lanes next to nothing.
+SMALL_SLOTS = 16
+SMALL_FEATURES = 32
 
 
 def degrees_in_model(spec: ModelSpec, theta, x, frame: pd.DataFrame, covariates,
@@ -474,8 +483,11 @@ class StaticProblem:
         # Padded with unused zero columns to a power of two (at least MIN_FEATURES): files
         # whose covariates differ a little (a temperature column more) share the compiled
         # lanes, whose shape includes the feature matrix's.
-        width = max(MIN_FEATURES, 1 << max(self.n_features - 1, 0).bit_length())
-        self.features = np.zeros((m, self.n_folds + 1, n, width))
+        small = _small(m, n)
+        width = max(SMALL_FEATURES if small else MIN_FEATURES,
+                    1 << max(self.n_features - 1, 0).bit_length())
+        folds = max(self.n_folds, N_FOLDS if small else 0) + 1  # unused folds stay zero
+        self.features = np.zeros((m, folds, n, width))
         for i, ft in enumerate(feats):
             for k, fk in enumerate(ft):
                 self.features[i, k, : len(fk), : fk.shape[1]] = fk
@@ -624,7 +636,7 @@ class StaticProblem:
         m, n = self.data.y.shape
         slots = [[c for name in s for c in self.effect(name).columns] for s in sets]
         n_tr = len(transforms())
-        n_slots = max(MIN_SLOTS, max(len(s) for s in slots))
+        n_slots = max(SMALL_SLOTS if _small(m, n) else MIN_SLOTS, max(len(s) for s in slots))
         n_slots = 1 << (n_slots - 1).bit_length()  # buckets: fewer shapes to compile
         folds = self.n_folds + 1
         lanes_set, lanes_muscle, lanes_fold = np.meshgrid(
@@ -725,6 +737,12 @@ class StaticProblem:
                             jnp.asarray(self.data.y), jnp.asarray(self.data.w),
                             jnp.asarray(self.fold), jnp.asarray(self.features), bounds)
         return self._shared
+
+
+def _small(muscles: int, rows: int) -> bool:
+    """Whether a diagnosis is small: its lanes run in one shape per size class of rows
+    (``SMALL_SLOTS``)."""
+    return muscles * rows <= SMALL_BATCH_SAMPLES
 
 
 def _on_bound(theta, lower, upper):
