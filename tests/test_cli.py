@@ -145,6 +145,12 @@ def test_demo_writes_table_and_plots(tmp_path, env):
     assert "held at its bound: no interval" in res.stdout and "nan" not in res.stdout
     summary = json.loads((out / "demo.json").read_text())
     assert summary["muscles"][0]["converged"] is True
+    # a slip weight's Wald interval crosses 0 on this file; it is cut at its physical bound
+    # (a weight ≥ 0) and says so, in the JSON and in the text
+    hyst = summary["diagnosis"]["constants"][0]["effects"]["hysteresis"]
+    cut = {k: c for k, c in hyst.items() if c.get("ci95_cut_at_bound")}
+    assert cut and all(c["ci95"][0] == 0.0 <= c["value"] <= c["ci95"][1] for c in cut.values())
+    assert "(cut at its physical bound)" in res.stdout
     assert 0 < summary["hysteresis_damping_400kPa_50kg"]["zeta"] < 1
     assert (out / "fit_DMSP-20-400N.png").exists()
 

@@ -6,6 +6,7 @@ a normal matrix or counts a rank."""
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -155,3 +156,14 @@ def test_the_inverse_from_the_normal_matrix_agrees_with_the_jacobians():
     np.testing.assert_array_equal(full, ref_full)
     assert list(full) == [True, True, True, False] and np.all(np.isnan(inv[3]))
     np.testing.assert_allclose(inv[:3], ref[:3], rtol=1e-9)
+
+
+def test_an_interval_is_cut_at_the_physical_bounds_and_says_so():
+    from pamid._inference import cut_at_bounds
+
+    assert cut_at_bounds(-0.18, 0.31, (0.0, math.inf)) == (0.0, 0.31, True)
+    assert cut_at_bounds(0.02, 0.31, (0.0, math.inf)) == (0.02, 0.31, False)
+    assert cut_at_bounds(0.2, 1.4, (0.0, 1.0)) == (0.2, 1.0, True)
+    assert cut_at_bounds(-3.0, 2.0) == (-3.0, 2.0, False)  # no bounds: unchanged
+    lo, hi, cut = cut_at_bounds(math.nan, math.nan, (0.0, math.inf))
+    assert math.isnan(lo) and math.isnan(hi) and not cut  # no interval stays none

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .._effects._definitions import DECAY_EFFECT_DEFINITIONS
+from .._inference import cut_at_bounds
 from ._result import analyse_residual, build_diagnosis, unexplained
 from ._select import SetFit, forward_select
 
@@ -79,8 +80,12 @@ def diagnose_decays(data, inertia_kg_m2, *, n_folds: int = 5, progress=None):
         for name in final.effects:
             e = _DEFINITION[name]
             lo, hi = f.params_ci95.get(e.key, (np.nan, np.nan))
+            # cut at the constant's physical bound (a friction torque ≥ 0)
+            lo, hi, cut = cut_at_bounds(lo, hi, (e.constant.lower, e.constant.upper))
             effects[name] = {e.key: {"value": float(f.params[e.key]), "ci95": [lo, hi],
                                      "unit": e.constant.unit}}
+            if cut:
+                effects[name][e.key]["ci95_cut_at_bound"] = True
         constants.append({"trial": trial, "effects": effects,
                           "base": {k: float(f.params[k]) for k in
                                    ("zeta", "omega_n_rad_s", "equilibrium_rad")

@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 
 from .._data._holdout import holdout_units
-from .._effects._base import Effect, FileContext, MuscleContext
+from .._effects._base import Effect, FileContext, MuscleContext, physical_bounds
 from .._effects._covariate import COVARIATE_DEGREE
 from .._effects._definitions import STATIC_EFFECT_DEFINITIONS, transforms
 from .._effects._model import transform_inputs, with_effects
@@ -58,7 +58,7 @@ from .._effects._steps import moving_steps, rod_steps, time_since_step
 from .._fit._api import fit_least_squares
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._spec import ModelSpec
-from .._inference import residual_variance, unscaled_covariance, wald_interval
+from .._inference import cut_at_bounds, residual_variance, unscaled_covariance, wald_interval
 from .._lanes import _export_cache
 from .._lanes._batch import SMALL_BATCH_SAMPLES, items_per_call, map_lanes, pack
 from .._lanes._sharding import lane_devices
@@ -470,7 +470,8 @@ class StaticProblem:
                     self.col_bounds += [(c.lower, c.upper) if c.held else (-math.inf, math.inf)
                                         for c in consts]
                 effects.append(Effect(name, covariate, tuple(c.name for c in consts),
-                                      tuple(c.unit for c in consts), cols, d, tr, d.grid))
+                                      tuple(c.unit for c in consts), cols, d, tr, d.grid,
+                                      tuple(physical_bounds(c, self.file) for c in consts)))
         self.grid_value = {e.name: [1.0] * len(self.frames) for e in effects if e.grid}
         return effects
 
@@ -967,16 +968,22 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
             e = problem.effect(name)
             consts = {}
             idx = problem._index(fit, name)
-            for pname, unit, j, c in zip(e.param_names, e.units, idx, e.columns or [None],
-                                         strict=False):
+            for k, (pname, unit, j) in enumerate(zip(e.param_names, e.units, idx,
+                                                     strict=False)):
                 v = float(params[i][j])
+                c = e.columns[k] if e.columns else None
                 if c is not None and _on_bound(v, *problem.col_bounds[c]):
                     # held on its bound by the fit (a slip element at 0: absent), no interval
                     consts[pname] = {"value": v, "ci95": [math.nan, math.nan], "unit": unit,
                                      "held_at_bound": True}
                     continue
                 lo, hi = wald_interval(v, se[j], dof, level)
+                # The constant cannot lie past its physical bound (a slip weight below 0):
+                # the interval is cut there (pamid._inference.cut_at_bounds).
+                lo, hi, cut = cut_at_bounds(lo, hi, *e.bounds[k:k + 1])
                 consts[pname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit}
+                if cut:
+                    consts[pname]["ci95_cut_at_bound"] = True
                 other = per_l0(unit, problem.l0_mm[i])  # a length per newton, also in mm
                 if other is not None:
                     other_unit, scale = other

@@ -64,7 +64,8 @@ class Effect:
     """An effect as one diagnosis uses it: its definition bound to one file.
 
     ``columns`` are its columns in the problem's feature matrix (empty for a transform);
-    ``transform`` is its place among the transform constants, or None.
+    ``transform`` is its place among the transform constants, or None; ``bounds`` the
+    physical (lower, upper) of each constant in this file (:func:`physical_bounds`).
     """
 
     name: str
@@ -75,6 +76,7 @@ class Effect:
     definition: EffectDefinition = dataclasses.field(repr=False, default=None)
     transform: int | None = None
     grid: Constant | None = None
+    bounds: tuple[tuple[float, float], ...] = ()
 
     @property
     def hidden(self) -> int:
@@ -219,7 +221,7 @@ class EffectDefinition:
             v = values.get(c.name)
             if v is None or not np.isfinite(v) or c.held:
                 continue
-            lo, hi = _bounds(c, file)
+            lo, hi = physical_bounds(c, file)
             u = "" if unit == "1" else f" {unit}"
             if v <= lo and lo > -math.inf:
                 return (f"{effect.name} would need {c.name} = {_fmt(v, unit, muscle)} "
@@ -232,7 +234,10 @@ class EffectDefinition:
         return None
 
 
-def _bounds(c: Constant, file: FileContext) -> tuple[float, float]:
+def physical_bounds(c: Constant, file: FileContext) -> tuple[float, float]:
+    """The physical (lower, upper) of constant ``c`` in ``file``: what the fit may not
+    report past (``violation``), and what its interval is cut at (the diagnosis's
+    intervals)."""
     return c.bounds(file) if c.bounds is not None else (c.lower, c.upper)
 
 

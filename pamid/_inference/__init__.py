@@ -21,10 +21,11 @@ from ._rank import (
     scaled_svd,
     undetermined,
 )
-from ._wald import t_critical, wald, wald_interval
+from ._wald import cut_at_bounds, t_critical, wald, wald_interval
 
 __all__ = [
-    "NULL_SHARE", "RANK_PIVOT", "RANK_RTOL", "covariance", "determined", "gram_inverse",
+    "NULL_SHARE", "RANK_PIVOT", "RANK_RTOL", "covariance", "cut_at_bounds", "determined",
+    "gram_inverse",
     "null_direction", "numerical_rank", "residual_variance", "scale_covariance", "scaled_svd",
     "standard_errors", "t_critical", "undetermined", "unscaled_covariance", "wald",
     "wald_interval",

@@ -35,6 +35,18 @@ def wald_interval(value, se, dof, level: float = 0.95):
     return value - t * se, value + t * se
 
 
+def cut_at_bounds(lower, upper, bounds=(-np.inf, np.inf)):
+    """An interval (``lower``, ``upper``) of a constant that physics keeps within ``bounds``
+    (a slip weight ≥ 0, a friction torque ≥ 0) cut at them: (lower, upper, cut), ``cut``
+    True where either end moved. The true value lies within the bounds, so the cut
+    interval covers it whenever the whole one does: the coverage is unchanged, and no end
+    says the constant may be what physics forbids. NaN ends stay NaN."""
+    lo_b, hi_b = (float(b) for b in bounds)
+    lower, upper = float(lower), float(upper)
+    cut = bool(lower < lo_b or upper > hi_b)
+    return (lo_b if lower < lo_b else lower), (hi_b if upper > hi_b else upper), cut
+
+
 def wald(theta, jtj_inv, sse, n, level: float = 0.95):
     """Wald intervals of a least-squares fit: se² = s²·diag((JᵀJ)⁻¹), s² = SSE/(n − p), and
     :func:`wald_interval`. Returns (se, lower, upper, s2, dof)."""

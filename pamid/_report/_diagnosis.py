@@ -55,14 +55,16 @@ def _judge_lines(sel: dict) -> list[str]:
 def constant_text(c: dict) -> str:
     """A diagnosed constant as text: its value and unit, then its 95 % interval, or why it
     has none (held on its physical bound by the fit, as a slip element at 0 is: absent;
-    chosen over a grid, as the transient's τ is)."""
+    chosen over a grid, as the transient's τ is); an interval cut at the constant's physical
+    bound says so."""
     value = f"{c['value']:.4g} {c['unit']}"
     if c.get("held_at_bound"):
         return f"{value}  (held at its bound: no interval)"
     if c.get("chosen_over") == "grid":
         return f"{value}  (chosen over a grid: no interval)"
     lo, hi = c["ci95"]
-    return f"{value}  [{lo:.4g}, {hi:.4g}]"
+    cut = "  (cut at its physical bound)" if c.get("ci95_cut_at_bound") else ""
+    return f"{value}  [{lo:.4g}, {hi:.4g}]{cut}"
 
 
 def diagnosis_report(d) -> str:
