@@ -11,7 +11,8 @@ JAX arrays), and check less than the workflows do. ::
 
     spec = pamid.engine.get_model("sarosi")
     data = pamid.bench_to_fit_data(pamid.load_bench("bench.csv"), spec)
-    theta, converged, steps = pamid.engine.solve(spec, data)
+    sol = pamid.engine.least_squares(spec, data)  # a Solution: params, result, steps …
+    theta = sol.params
     sse, jtj_inv, corr, n, full_rank = pamid.engine.statistics(spec, theta, data)
     se, lower, upper, s2, dof = pamid.engine.wald_intervals(theta, jtj_inv, sse, n)
     cr3 = pamid.engine.correlated_intervals(spec, data, theta, "cluster")
@@ -20,9 +21,12 @@ JAX arrays), and check less than the workflows do. ::
   :class:`pamid.ForceModel`) gives the :class:`ModelSpec` the engine fits; a spec with
   ``written_out=False`` (``dataclasses.replace``) is fitted by the generic solvers, without
   the written-out kernels registered for its model class.
-* Least squares: :func:`solve` (one compiled call for the batch, from the model's start or
-  ``theta0``; the solvers ``"gauss-newton"``, ``"levenberg-marquardt"``,
-  ``"variable-projection"``, ``"jaxopt-levenberg-marquardt"``), :func:`statistics`;
+* Least squares: :func:`least_squares`, the one entry (one compiled call for the batch,
+  from the model's start or ``theta0``, within ``bounds``, with ``weights``; the solvers
+  ``"gauss-newton"``, ``"levenberg-marquardt"``, ``"variable-projection"``,
+  ``"jaxopt-levenberg-marquardt"`` or a solver value), which returns a :class:`Solution`
+  (constants, a result code per lane of :data:`RESULT_NAMES`, steps; the statistics where
+  asked); :func:`solve`, the same as the tuple (theta, converged, steps); :func:`statistics`;
   :func:`find_curves` (the curve structure the bootstrap and the cluster intervals group
   by); :func:`use_disk_caches` (the compiled programs kept on disk, as the command keeps
   them); :func:`padded_rows` (the size class of rows a batch is packed to: files of one
@@ -69,7 +73,7 @@ from ._fit._correlated import (
 from ._fit._intervals import bootstrap as bootstrap_intervals
 from ._fit._intervals import profile as profile_intervals
 from ._fit._intervals import wald as wald_intervals
-from ._fit._least_squares import solve, statistics
+from ._fit._least_squares import least_squares, solve, statistics
 from ._fit._spec import ModelSpec, get_model, model_names
 from ._lanes._batch import padded_rows
 from ._lanes._export_cache import use_disk_caches
@@ -86,6 +90,8 @@ from ._sampling._mcmc import (
 )
 from ._sampling._posterior import numpy_log_prob
 from ._solvers import (
+    RESULT_NAMES,
+    Solution,
     sarosi_fast_start,
     sarosi_fit_at_a3,
     sarosi_gauss_newton,
@@ -96,8 +102,10 @@ from ._solvers import (
 __all__ = [
     # The model registry.
     "ModelSpec", "get_model", "model_names",
-    # Batched least squares, the curve structure, the disk caches.
-    "solve", "statistics", "Curves", "find_curves", "use_disk_caches", "padded_rows",
+    # Batched least squares (the one entry and what it returns; ``solve``, its tuple), the
+    # curve structure, the disk caches.
+    "least_squares", "Solution", "RESULT_NAMES", "solve", "statistics", "Curves",
+    "find_curves", "use_disk_caches", "padded_rows",
     # Sárosi eq. 2.1's written-out kernels: starts and solvers.
     "sarosi_fast_start", "sarosi_gauss_newton", "sarosi_fit_at_a3",
     "sarosi_variable_projection", "sarosi_variable_projection_start",

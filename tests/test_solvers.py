@@ -96,3 +96,66 @@ def test_every_own_loop_fit_is_a_model_value_through_fit_lane():
              if "fit_lane(" in p.read_text(encoding="utf-8") and p.parent.name != "_solvers"}
     assert users == {"_fit/_least_squares.py", "_diagnose/_static.py",
                      "_decays/_analysis.py", "_decays/_coulomb.py", "_decays/_joint_fit.py"}
+
+
+def test_the_one_entry_returns_a_solution_with_a_result_per_lane(small_bench):
+    """``least_squares(model, data, solver=…)`` is the one batched entry: a ``Solution`` of
+    NumPy arrays with a leading lane axis (the type a lane of pamid's own loop ends with),
+    a result code per lane, and ``solve`` the same as a tuple."""
+    from pamid._lanes._batch import pack_rows
+    from pamid.engine import RESULT_NAMES, Solution, get_model, least_squares, solve
+
+    spec, data = get_model("sarosi"), small_bench.data
+    sol = least_squares(spec, data, with_statistics=True)
+    assert isinstance(sol, Solution) and sol.params.shape == (3, 6)
+    assert list(sol.status) == ["converged"] * 3 and sol.converged.all()
+    np.testing.assert_allclose(sol.sse, sol.statistics[0])
+    theta, ok, steps = solve(spec, data)
+    np.testing.assert_array_equal(theta, sol.params)
+    np.testing.assert_array_equal(steps, sol.steps)
+
+    # A budget of one step from a start far off: every lane says it ran out of steps.
+    far = np.asarray(sol.params) * 1.5
+    short = least_squares(spec, data, solver="levenberg-marquardt", theta0=far, max_steps=1)
+    assert list(short.status) == ["max_steps"] * 3 and set(short.status) <= set(RESULT_NAMES)
+
+    # Weights multiply the data's own: ones change nothing (padding keeps weight 0) ...
+    lm = least_squares(spec, data, solver="levenberg-marquardt")
+    ones = least_squares(spec, data, solver="levenberg-marquardt",
+                         weights=np.ones(np.shape(data.w)))
+    np.testing.assert_array_equal(ones.params, lm.params)
+    # ... and 0 on a fold's rows fits the rest: the fit of the data without those rows.
+    w, curve = np.asarray(data.w), np.asarray(data.curve)
+    held = curve == 1
+    fold = least_squares(spec, data, solver="levenberg-marquardt",
+                         weights=np.where(held, 0.0, 1.0))
+    keep = (w > 0) & ~held
+    codes = np.nonzero(keep)[0]
+    rest = pack_rows(codes, tuple(np.asarray(a)[keep] for a in data.x),
+                     np.asarray(data.y)[keep], n_muscles=3)
+    alone = least_squares(spec, rest, solver="levenberg-marquardt")
+    assert fold.converged.all() and alone.converged.all()
+    np.testing.assert_allclose(fold.params, alone.params, rtol=1e-7)
+    assert not np.allclose(fold.params, lm.params, rtol=1e-7)  # the fold did leave rows out
+
+    with pytest.raises(ValueError, match="weights of shape"):
+        least_squares(spec, data, weights=np.ones(3))
+    with pytest.raises(ValueError, match="finite and ≥ 0"):
+        least_squares(spec, data, weights=-np.ones(np.shape(data.w)))
+
+
+def test_a_lane_of_the_own_loop_ends_with_the_same_solution_type():
+    import jax.numpy as jnp
+
+    from pamid._solvers import CONVERGED, Solution, fit_lane
+    from pamid.engine import get_model
+
+    spec = get_model("sarosi")
+    p, k = np.meshgrid(np.linspace(1, 6, 8), np.linspace(0, 25, 12))
+    x = spec.to_x(p.ravel() * 100.0, k.ravel())
+    truth = jnp.asarray([21.0, 276.0, -0.31, -6.0, 120.0, -194.0])
+    y = spec.predict(truth, x)
+    sol = fit_lane(spec, truth * 1.01, x, y, jnp.ones_like(y), max_steps=100, rtol=1e-12,
+                   floor_per_sample=1e-20)  # exact data: an absolute floor on the decrement
+    assert isinstance(sol, Solution) and int(sol.result) == CONVERGED and sol.statistics is None
+    np.testing.assert_allclose(sol.params, truth, rtol=1e-8)

@@ -26,7 +26,7 @@ import numpy as np
 from .._inference import t_critical, wald, wald_interval  # noqa: F401  (pamid.engine)
 from .._lanes._batch import FitData, items_per_call, map_lanes
 from .._solvers import ProfileNewton, generic_derivatives
-from ._least_squares import _key, solve
+from ._least_squares import _key, least_squares
 from ._spec import ModelSpec
 
 
@@ -137,9 +137,9 @@ def bootstrap(spec: ModelSpec, data: FitData, theta, key, n_boot: int = 1000,
         curve=rep(data.curve),
     )
     start = np.repeat(np.asarray(theta), n_boot, axis=0)
-    est, ok, _ = solve(spec, boot, solver=solver, theta0=start)
-    est = est.reshape(m, n_boot, -1)
-    ok = ok.reshape(m, n_boot)
+    sol = least_squares(spec, boot, solver=solver, theta0=start)
+    est = sol.params.reshape(m, n_boot, -1)
+    ok = sol.converged.reshape(m, n_boot)
     alpha = (1 - level) / 2
     masked = np.where(ok[..., None], est, np.nan)
     lower = np.nanquantile(masked, alpha, axis=1)

@@ -28,7 +28,17 @@ import numpy as np
 
 from .._inference import unscaled_covariance
 from .._lanes._batch import FitData, map_lanes, padded_rows
-from .._solvers import SOLVER_CLASSES, Solver, as_solver, residuals  # noqa: F401
+from .._solvers import (  # noqa: F401 - residuals: where the weighted residual is found
+    CONVERGED,
+    MAX_STEPS,
+    NONFINITE,
+    SOLVER_CLASSES,
+    STALLED,
+    Solution,
+    Solver,
+    as_solver,
+    residuals,
+)
 from ._spec import ModelSpec
 
 #: The solvers' names (``--solver``); the solvers themselves are values (``_solvers``).
@@ -81,86 +91,139 @@ def _statistics(spec, theta, x, y, w):
     return jax.vmap(one)(theta, x, y, w)
 
 
-def solve(
-    spec: ModelSpec,
+def least_squares(
+    model: ModelSpec,
     data: FitData,
     *,
-    solver: str = "gauss-newton",
+    solver: Solver | str = "gauss-newton",
     theta0=None,
     bounds=None,
+    weights=None,
     max_steps: int = 100,
     rtol: float = 1e-10,
     atol: float = 1e-10,
     with_statistics: bool = False,
-):
-    """Fit ``spec`` to every muscle of ``data`` in one compiled call.
+) -> Solution:
+    """pamid's one batched least-squares entry: ``model`` fitted to every lane of ``data``
+    (a muscle, a fold, a start …) in one compiled call, by ``solver`` (a value of
+    :mod:`pamid._solvers`, or its name).
 
-    Returns ``(theta, converged, n_steps)`` as NumPy arrays with a leading muscle axis.
-    ``with_statistics`` (not with ``bounds``): a fourth item, :func:`statistics`
-    ``(..., lag1=True)`` at those constants from the same compiled call where the model's
-    registered Gauss–Newton kernel solves (one program and one pass of the chunk's samples
-    fewer than a second call: benchmarks/README.md, "The solve and its statistics in one
-    program"), else None: for the other solvers the statistics' own program, one for all
-    of them, is compiled once rather than into each.
+    Args:
+        model: the model, a :class:`~pamid._fit._spec.ModelSpec` (a ``ForceModel`` class's
+            view, or a model made of another: pooled, smooth in l0, with effects …).
+        data: the packed batch, one lane per row of its arrays.
+        solver: the solver; where the model registers written-out kernels of its kind
+            (Sárosi's Gauss–Newton), those run, from their own start.
+        theta0: starts (lanes, p); default the model's start.
+        bounds: ``(lower, upper)`` of the constants: every lane is fitted within them by
+            pamid's one loop with projected bounds (a constant on a bound whose gradient
+            points out of the box held there), from ``theta0`` clipped into them.
+        weights: per-sample weights (lanes, rows) that multiply the data's own (padding
+            stays 0): a fold of a cross-validation is this call with 0 on its held-out rows.
+        max_steps, rtol, atol: the step budget and stopping tolerances (with ``bounds`` the
+            budget is at least 200 steps).
+        with_statistics: (not with ``bounds``) also the statistics at the constants
+            (:func:`statistics` with the lag-1 sums), from the same compiled call where the
+            model's written-out Gauss–Newton solves (one program and one pass of the
+            samples fewer: benchmarks/README.md, "The solve and its statistics in one
+            program"), else from the statistics' own program, compiled once for every
+            solver rather than into each.
+
+    Returns:
+        A :class:`~pamid._solvers.Solution` with a leading lane axis, as NumPy arrays:
+        ``params``, ``result`` (``converged``; ``nonfinite`` where a constant is not
+        finite; ``max_steps`` where the budget ran out; ``stalled`` where the solver
+        stopped short of its tolerance before that), ``steps``, and with
+        ``with_statistics`` the ``statistics`` and their ``sse``.
     """
     if with_statistics and bounds is not None:
         raise ValueError("with_statistics is for fits without bounds")
+    if weights is not None:
+        weights = np.asarray(weights, dtype=np.float64)
+        if weights.shape != tuple(np.shape(data.w)):
+            raise ValueError(f"weights of shape {weights.shape}; the data's lanes and rows "
+                             f"are {tuple(np.shape(data.w))}")
+        if not np.all(np.isfinite(weights) & (weights >= 0)):
+            raise ValueError("weights must be finite and ≥ 0")
+        data = data._replace(w=jax.device_put(np.asarray(data.w) * weights))
     solver = as_solver(solver)
-    solver.check(spec)
-    kernel = solver.kernel(spec)
-    fast = spec.kernels
+    solver.check(model)
+    kernel = solver.kernel(model)
+    fast = model.kernels
+    budget = max_steps
+    stats = None
     if kernel is not None and bounds is None:
         # The model's registered written-out solver, with its own start.
         start = () if theta0 is None else (_host(theta0),)
         if with_statistics:
-            out = map_lanes(
+            theta, ok, steps, stats = map_lanes(
                 lambda x, y, w, c, *t0: _fit_statistics(
-                    spec, x, y, w, c, *t0, max_steps=max_steps, rtol=rtol, atol=atol
+                    model, x, y, w, c, *t0, max_steps=max_steps, rtol=rtol, atol=atol
                 ),
                 data.x, data.y, data.w, data.curve, *start,
                 cache_key=(f"{fast.key}_gauss_newton_statistics", max_steps, rtol, atol),
             )
         else:
-            out = map_lanes(
+            theta, ok, steps = map_lanes(
                 lambda x, y, w, *t0: kernel(
                     x, y, w, *t0, max_steps=max_steps, rtol=rtol, atol=atol
                 ),
                 data.x, data.y, data.w, *start,
                 cache_key=(f"{fast.key}_gauss_newton", max_steps, rtol, atol),
             )
-        return _solved(*out)
+        return _solution(theta, ok, steps, budget, stats)
     if theta0 is None:
-        theta0 = _start_values(spec, data)
+        theta0 = _start_values(model, data)
     theta0 = _host(theta0)
     if bounds is not None:
         lower, upper = (jnp.broadcast_to(jnp.asarray(b, float), theta0.shape[-1:]) for b in bounds)
         if bool(jnp.any(lower > upper)):
             raise ValueError("every lower bound must be at most its upper bound")
+        budget = max(max_steps, 200)
         theta, ok, steps = map_lanes(
             lambda t0, x, y, w: _solve_in_bounds(
-                spec, t0, x, y, w, lower, upper, max_steps=max(max_steps, 200)
+                model, t0, x, y, w, lower, upper, max_steps=budget
             ),
             theta0, data.x, data.y, data.w,
-            cache_key=_key("solve_in_bounds", spec, max(max_steps, 200),
+            cache_key=_key("solve_in_bounds", model, budget,
                            tuple(np.asarray(lower).tolist()), tuple(np.asarray(upper).tolist())),
         )
     else:
         theta, ok, steps = map_lanes(
-            lambda t0, x, y, w: _solve_batch(spec, solver, t0, x, y, w, max_steps, rtol, atol),
+            lambda t0, x, y, w: _solve_batch(model, solver, t0, x, y, w, max_steps, rtol, atol),
             theta0, data.x, data.y, data.w,
-            cache_key=_key("solve", spec, solver.name, max_steps, rtol, atol),
+            cache_key=_key("solve", model, solver.name, max_steps, rtol, atol),
         )
-    out = _solved(theta, ok, steps)
-    return (*out, None) if with_statistics else out
+        if with_statistics:
+            stats = statistics(model, np.asarray(theta), data, lag1=True)
+    return _solution(theta, ok, steps, budget, stats)
 
 
-def _solved(theta, ok, steps, stats=None):
-    """A solve's outputs as NumPy arrays; a lane whose constants are not all finite has not
-    converged. With ``stats``, those as a tuple after them."""
-    theta = np.asarray(theta)
-    ok = np.asarray(ok) & np.all(np.isfinite(theta), axis=-1)
-    out = (theta, ok, np.asarray(steps))
-    return out if stats is None else (*out, tuple(np.asarray(a) for a in stats))
+def solve(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", theta0=None,
+          bounds=None, max_steps: int = 100, rtol: float = 1e-10, atol: float = 1e-10,
+          with_statistics: bool = False):
+    """:func:`least_squares` as a tuple, as ``pamid.engine.solve`` has returned it:
+    ``(theta, converged, n_steps)`` as NumPy arrays with a leading muscle axis, and with
+    ``with_statistics`` a fourth item, the statistics at those constants."""
+    sol = least_squares(spec, data, solver=solver, theta0=theta0, bounds=bounds,
+                        max_steps=max_steps, rtol=rtol, atol=atol,
+                        with_statistics=with_statistics)
+    out = (sol.params, sol.converged, sol.steps)
+    return (*out, sol.statistics) if with_statistics else out
+
+
+def _solution(theta, ok, steps, budget: int, stats=None) -> Solution:
+    """A batched solve's outputs as a :class:`~pamid._solvers.Solution` of NumPy arrays: a
+    lane whose constants are not all finite has not converged (``nonfinite``), one that
+    did not converge ran out of its ``budget`` of steps or stopped short (``stalled``)."""
+    theta, steps = np.asarray(theta), np.asarray(steps)
+    finite = np.all(np.isfinite(theta), axis=-1)
+    result = np.where(~finite, NONFINITE, np.where(
+        np.asarray(ok), CONVERGED, np.where(steps >= budget, MAX_STEPS, STALLED)))
+    stats = None if stats is None else tuple(np.asarray(a) for a in stats)
+    return Solution(params=theta, residual=None, jac=None,
+                    sse=None if stats is None else stats[0], result=result, steps=steps,
+                    free=None, statistics=stats)
 
 
 @functools.partial(jax.jit, static_argnames=("spec", "max_steps", "rtol", "atol"))
@@ -501,10 +564,10 @@ def _multi_start(spec, data, solver, k, max_steps, rtol, atol, lower=None, upper
         theta0 = np.concatenate([np.asarray(own)[:, None], theta0], axis=1)
     k = min(k, theta0.shape[1])
     rep = _repeat_lanes(data, k)
-    theta, ok, steps = solve(spec, rep, solver=solver,
-                             theta0=theta0[:, :k].reshape(-1, spec.n_params),
-                             max_steps=max_steps, rtol=rtol, atol=atol)
-    return _best_of(spec, theta, ok, steps, rep, k, lower, upper)
+    sol = least_squares(spec, rep, solver=solver,
+                        theta0=theta0[:, :k].reshape(-1, spec.n_params),
+                        max_steps=max_steps, rtol=rtol, atol=atol)
+    return _best_of(spec, sol.params, sol.converged, sol.steps, rep, k, lower, upper)
 
 
 def _rank_deficient(spec, theta, data, lanes, free=None) -> np.ndarray:
@@ -556,8 +619,8 @@ def first_solve(spec: ModelSpec, data: FitData, *, solver: str, starts: int, the
                 bounds=(None, None), with_statistics: bool = False):
     """Step 1 of :func:`fit_lanes`, the solve without bounds: a model linear in every
     constant solved directly; several starts as extra lanes where ``starts`` > 1 (not for
-    a registered kernel, which has its own start); else one :func:`solve`, which also gives
-    the statistics where ``with_statistics`` asks for them.
+    a registered kernel, which has its own start); else one :func:`least_squares`, which
+    also gives the statistics where ``with_statistics`` asks for them.
 
     Returns ``((theta, ok, steps), statistics or None, linear, several)``: ``several`` when
     the lanes already come from several starts (or were solved), so that no second try
@@ -571,9 +634,9 @@ def first_solve(spec: ModelSpec, data: FitData, *, solver: str, starts: int, the
         out = _multi_start(spec, data, solver, starts, max_steps, rtol, atol, *bounds)
     if out is not None:
         return out, None, linear, True
-    out = solve(spec, data, solver=solver, theta0=theta0, max_steps=max_steps, rtol=rtol,
-                atol=atol, with_statistics=with_statistics)
-    return out[:3], (out[3] if with_statistics else None), linear, False
+    sol = least_squares(spec, data, solver=solver, theta0=theta0, max_steps=max_steps,
+                        rtol=rtol, atol=atol, with_statistics=with_statistics)
+    return (sol.params, sol.converged, sol.steps), sol.statistics, linear, False
 
 
 def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", bounds=None,
@@ -594,7 +657,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
        A lane whose fit without bounds found no determined optimum is marked as ran away.
 
     ``with_statistics``: the main solve of step 1 also returns the statistics at its
-    constants where it can (:func:`solve`); they are kept in ``LaneFit.statistics`` when no
+    constants (:func:`least_squares`); they are kept in ``LaneFit.statistics`` when no
     lane changed after it.
     """
     solver = as_solver(solver)
@@ -622,10 +685,11 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
         if cands is not None:
             kk = min(k_retry, cands[0].shape[1])
             rep = _repeat_lanes(sub, kk)
-            t2, ok2, st2 = solve(spec, rep, solver=solver,
-                                 theta0=np.asarray(cands[0])[:, :kk].reshape(-1, p),
-                                 max_steps=max_steps, rtol=rtol, atol=atol)
-            t2, ok2, st2 = _best_of(spec, t2, ok2, st2, rep, kk, lower, upper)
+            sol = least_squares(spec, rep, solver=solver,
+                                theta0=np.asarray(cands[0])[:, :kk].reshape(-1, p),
+                                max_steps=max_steps, rtol=rtol, atol=atol)
+            t2, ok2, st2 = _best_of(spec, sol.params, sol.converged, sol.steps, rep, kk,
+                                    lower, upper)
             sse_old = lane_sse(spec, theta[retry], sub)
             sse_new = lane_sse(spec, t2, sub)
             # Better: in bounds where the old one was not, else converged where the old one
@@ -661,9 +725,10 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
                                              0.5 * (lower + upper), np.clip(0.0, lower, upper)),
                                     start.shape))
             start = np.where(np.isfinite(start), start, best)
-        tb, okb, stb = solve(spec, sub, theta0=start, bounds=(lower, upper),
-                             max_steps=max_steps)
-        theta[lanes], ok[lanes], steps[lanes] = tb, okb, steps[lanes] + stb
+        sol = least_squares(spec, sub, theta0=start, bounds=(lower, upper),
+                            max_steps=max_steps)
+        tb = sol.params
+        theta[lanes], ok[lanes], steps[lanes] = tb, sol.converged, steps[lanes] + sol.steps
         stats = None
         width = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
         tol = 1e-9 * np.maximum(width, np.maximum(np.abs(np.where(np.isfinite(lower), lower, 0)),

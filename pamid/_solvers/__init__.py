@@ -1,9 +1,10 @@
 """Solvers as values (issue 33): every iterative loop that fits constants is one solver class
 in one file of this package, passed to the one least-squares entry
-(:func:`pamid._fit._least_squares.solve`) or, for interval ends, to
-:func:`pamid._fit._intervals.profile`.
+(:func:`pamid._fit._least_squares.least_squares`, which returns a :class:`Solution`) or,
+for interval ends, to :func:`pamid._fit._intervals.profile`.
 
-- ``_base.py``: :class:`Solver`, the interface, and the weighted residual;
+- ``_base.py``: :class:`Solver`, the interface, the weighted residual and what a solve
+  ends with, :class:`Solution` and its result codes;
 - ``_gauss_newton.py``: :class:`GaussNewton` (optimistix's loop, or the model's written-out
   kernel);
 - ``_sarosi.py``: Sárosi eq. 2.1's written-out Gauss–Newton kernel, its start and statistics
@@ -20,17 +21,21 @@ To add a solver: one class in one file here with a unique ``name``, and one entr
 :data:`SOLVER_CLASSES` below.
 """
 
-from ._base import Solver, optimistix_lanes, residuals
-from ._gauss_newton import GaussNewton
-from ._jaxopt import JaxoptLevenbergMarquardt
-from ._levenberg_marquardt import (
+from ._base import (
     CONVERGED,
     MAX_STEPS,
     NONFINITE,
     RESULT_NAMES,
     STALLED,
-    LevenbergMarquardt,
     Solution,
+    Solver,
+    optimistix_lanes,
+    residuals,
+)
+from ._gauss_newton import GaussNewton
+from ._jaxopt import JaxoptLevenbergMarquardt
+from ._levenberg_marquardt import (
+    LevenbergMarquardt,
     fit_lane,
     levenberg_marquardt,
     newton_decrement,

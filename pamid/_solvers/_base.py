@@ -18,15 +18,63 @@ solve) with
 
 ``spec`` is the fitting code's view of a model (:class:`pamid._fit._spec.ModelSpec`): a
 solver calls only its ``predict(theta, x)`` and ``kernels``.
+
+What a fit ends with is a :class:`Solution`, one type for one lane (pamid's own loop,
+:func:`pamid._solvers.fit_lane`) and for a batch (the one entry,
+:func:`pamid._fit._least_squares.least_squares`: the same fields with a leading lane axis).
 """
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+#: Result codes, the same names as ``FitResult.status``.
+CONVERGED, MAX_STEPS, NONFINITE, STALLED = 0, 1, 2, 3
+RESULT_NAMES = ("converged", "max_steps", "nonfinite", "stalled")
+
+
+class Solution(NamedTuple):
+    """The end of a solve: of one lane, or of a batch with a leading lane axis on every
+    field.
+
+    Attributes:
+        params: the constants (masked ones at their start values).
+        residual: the weighted residual w^½·(model − data) at ``params`` (None where the
+            batched entry was not asked for it).
+        jac: its Jacobian there, masked and held columns zero (None likewise).
+        sse: the sum of squares of ``residual``; None where the solver does not give it.
+        result: a result code (:data:`RESULT_NAMES`).
+        steps: the number of steps taken.
+        free: the mask at the end: 0 for the masked constants and for those held on a
+            bound (box bounds only; otherwise the mask itself); None where every constant
+            was free.
+        statistics: the statistics at ``params`` where the batched entry computed them
+            (``pamid._fit._least_squares.statistics``' tuple), else None.
+    """
+
+    params: jax.Array
+    residual: jax.Array | None
+    jac: jax.Array | None
+    sse: jax.Array | None
+    result: jax.Array
+    steps: jax.Array
+    free: jax.Array | None
+    statistics: tuple | None = None
+
+    @property
+    def converged(self):
+        """Whether each lane converged (result ``converged``)."""
+        return self.result == CONVERGED
+
+    @property
+    def status(self) -> np.ndarray:
+        """Each lane's result as its name (:data:`RESULT_NAMES`), on the host."""
+        return np.asarray(RESULT_NAMES, dtype=object)[np.asarray(self.result)]
 
 
 def residuals(spec, theta, x, y, w):

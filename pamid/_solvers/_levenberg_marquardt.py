@@ -39,16 +39,13 @@ were held on a bound there.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import ClassVar, NamedTuple
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 
-from ._base import Solver, optimistix_lanes
+from ._base import CONVERGED, MAX_STEPS, NONFINITE, STALLED, Solution, Solver, optimistix_lanes
 
-#: Result codes, the same names as ``FitResult.status``.
-CONVERGED, MAX_STEPS, NONFINITE, STALLED = 0, 1, 2, 3
-RESULT_NAMES = ("converged", "max_steps", "nonfinite", "stalled")
 #: Damping beyond which no step can lower the sum of squares: the loop has stalled.
 MAX_DAMPING = 1e16
 #: Relative ridge of the stopping test's Newton decrement (on JᵀJ scaled to unit diagonal):
@@ -57,30 +54,6 @@ MAX_DAMPING = 1e16
 #: decrement, so such a lane never passes the test although no step can lower its SSE.
 #: With the ridge, rounding there adds about ε²/RIDGE ≈ 1e-20 of the SSE.
 DECREMENT_RIDGE = 1e-12
-
-
-class Solution(NamedTuple):
-    """The end of one lane's solve.
-
-    Attributes:
-        params: the constants (masked ones at their start values).
-        residual: ``linearise``'s residual at ``params`` (weighted as it returns it).
-        jac: its Jacobian there, masked columns zero.
-        sse: the sum of squares of ``residual``.
-        result: a result code (:data:`RESULT_NAMES`).
-        steps: the number of steps taken.
-        free: the mask at the end: 0 for the masked constants and for those held on a
-            bound (box bounds only; otherwise the mask itself). ``jac`` has these
-            columns zero.
-    """
-
-    params: jax.Array
-    residual: jax.Array
-    jac: jax.Array
-    sse: jax.Array
-    result: jax.Array
-    steps: jax.Array
-    free: jax.Array
 
 
 def restrict(g, h, mask):
