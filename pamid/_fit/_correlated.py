@@ -59,6 +59,7 @@ import numpy as np
 
 from .._inference import gram_inverse, t_critical, wald_interval
 from .._lanes._batch import FitData, map_lanes
+from .._solvers import residuals_and_jacobian
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
 
@@ -72,8 +73,8 @@ _MAX_LEVERAGE = 1.0 - 1e-9
 @functools.partial(jax.jit, static_argnames=("spec",))
 def _jacobian_residuals(spec, theta, x, y, w):
     def one(theta, x, y, w):
-        res = lambda th: residuals(spec, th, x, y, w)  # noqa: E731
-        return jax.jacfwd(res)(theta), res(theta)
+        r, jac = residuals_and_jacobian(spec, theta, x, y, w)
+        return jac, r
 
     return jax.vmap(one)(theta, x, y, w)
 

@@ -38,6 +38,7 @@ from .._solvers import (  # noqa: F401 - residuals: where the weighted residual 
     Solver,
     as_solver,
     residuals,
+    residuals_and_jacobian,
 )
 from ._spec import ModelSpec
 
@@ -74,8 +75,7 @@ def _statistics(spec, theta, x, y, w):
     """SSE, Jacobian-based covariance factor, and the correlation of data and model."""
 
     def one(theta, x, y, w):
-        r = residuals(spec, theta, x, y, w)
-        jac = jax.jacfwd(lambda th: residuals(spec, th, x, y, w))(theta)
+        r, jac = residuals_and_jacobian(spec, theta, x, y, w)
         # (JᵀJ)⁻¹ and the rank test, pamid's one of each (``pamid._inference``): through
         # the SVD of the column-scaled J (Q·R first), +inf where J is rank-deficient.
         jtj_inv, _, full_rank = unscaled_covariance(jac)
@@ -312,8 +312,9 @@ def statistics(spec: ModelSpec, theta, data: FitData, *, lag1: bool = False):
     For the Sárosi model, the written-out sums of ``sarosi_statistics`` (two passes over the
     samples; about 6× faster than a Jacobian, QR and SVD per lane, the same inverse to
     1e-10: ``benchmarks/profile_pieces.py --only-cores``, figures in benchmarks/README.md,
-    "Figures that used to live in docstrings", (f)); for other models, the Jacobian by
-    ``jax.jacfwd`` and an SVD.
+    "Figures that used to live in docstrings", (f)); for other models, the Jacobian (the
+    model's ``value_and_jacobian``: :func:`pamid._solvers.residuals_and_jacobian`) and an
+    SVD.
 
     ``lag1``: also the sums of the residual's lag-1 autocorrelation within ``data.curve``
     (:func:`pamid._fit._least_squares.lag1_sums`: three more arrays), from the same compiled

@@ -31,6 +31,7 @@ from ._base import (
     Solver,
     optimistix_lanes,
     residuals,
+    residuals_and_jacobian,
 )
 from ._gauss_newton import GaussNewton
 from ._jaxopt import JaxoptLevenbergMarquardt
@@ -79,8 +80,8 @@ __all__ = [
     "GaussNewton", "JaxoptLevenbergMarquardt", "LevenbergMarquardt", "ProfileNewton",
     "Solution", "Solver", "VariableProjection", "as_solver", "fit_lane",
     "generic_derivatives", "levenberg_marquardt", "newton_decrement",
-    "optimistix_lanes", "residuals", "restrict", "sarosi_derivatives", "sarosi_fast_start",
-    "sarosi_fit_at_a3",
+    "optimistix_lanes", "residuals", "residuals_and_jacobian", "restrict",
+    "sarosi_derivatives", "sarosi_fast_start", "sarosi_fit_at_a3",
     "sarosi_gauss_newton", "sarosi_statistics", "sarosi_variable_projection",
     "sarosi_variable_projection_start", "small_cholesky_solve", "solve_scaled",
 ]

@@ -82,6 +82,16 @@ def residuals(spec, theta, x, y, w):
     return jnp.sqrt(w) * (spec.predict(theta, x) - y)
 
 
+def residuals_and_jacobian(spec, theta, x, y, w):
+    """The weighted residuals of :func:`residuals` and their Jacobian in ``theta`` (n × p),
+    from the model's own ``value_and_jacobian`` (one forward-mode pass, or the structured
+    derivatives a model knows): the statistics, the sandwich intervals and the profile's
+    derivatives take theirs from here."""
+    sw = jnp.sqrt(w)
+    value, jac = spec.value_and_jacobian(theta, x)
+    return sw * (value - y), jac * sw[:, None]
+
+
 class Solver(eqx.Module):
     """A least-squares solver for batches of lanes (module docstring)."""
 

@@ -17,7 +17,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._base import residuals
+from ._base import residuals, residuals_and_jacobian
 from ._sarosi import solve_scaled
 
 #: An interval end has converged when the last Newton step moved every constant by less
@@ -52,8 +52,7 @@ def generic_derivatives(spec, x, y, w):
 
     def one(theta, x, y, w):
         res = lambda th: residuals(spec, th, x, y, w)  # noqa: E731
-        r = res(theta)
-        jac = jax.jacfwd(res)(theta)
+        r, jac = residuals_and_jacobian(spec, theta, x, y, w)
         hess = jax.hessian(lambda th: 0.5 * jnp.sum(res(th) ** 2))(theta)
         return jnp.sum(r**2), jac.T @ r, hess, jac.T @ jac
 
