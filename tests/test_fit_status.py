@@ -112,6 +112,14 @@ def test_a_bound_that_excludes_the_optimum_is_at_bound(designs, theta31):
     assert fit.theta[i, 0] == pytest.approx(upper[0], rel=1e-12)
     assert "a1 = " in fit.message(i) and "(at its upper bound)" in fit.message(i)
     assert fit.sse[i] > free.sse[i]
+    # Its intervals are cut at the bound (Wald's centred on it would reach past it), and say
+    # so, in the result and in the JSON.
+    assert fit.ci95[i, 0, 1] == upper[0] and fit.ci95[i, 0, 0] < upper[0]
+    assert fit.interval_cut[i, 0] and not fit.interval_cut[i, 1:].any()
+    doc = json.loads(fit_json(fit))
+    entry = doc["muscles"][i]["params"]
+    assert entry["a1"]["ci95_cut_at_bound"] is True and entry["a2"]["ci95_cut_at_bound"] is False
+    assert entry["a1"]["ci95_wald"][1] == upper[0]
     # The same optimum SciPy finds within the same bounds.
     import scipy.optimize
 
@@ -269,3 +277,27 @@ def test_the_fit_keeps_the_solve_s_statistics_only_where_no_lane_changed(designs
                          strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=0.0)
     assert fit_lanes(SAROSI, good).statistics is None  # not asked for
+
+
+def test_no_interval_reaches_past_a_physical_bound(tmp_path):
+    """Chou–Hannaford's wall thickness (0 ≤ t ≤ 5 mm) fitted to the bundled file ends on 0;
+    none of its intervals says it may be negative (or thicker than the law allows), and
+    the table says which were cut. A fit whose intervals lie within the bounds has no
+    flag at all (the JSON of every other fit is as it was)."""
+    from pathlib import Path
+
+    import pamid
+    from pamid._commands.fit import fit_table
+
+    bench = pamid.load_bench(Path(__file__).resolve().parents[1] / "pamid" / "data"
+                             / "sarosi_dmsp20_400_virtual.csv")
+    fit = fit_least_squares(bench, model="chou_hannaford", intervals=("wald", "cluster"))
+    j = fit.param_names.index("t_mm")
+    assert fit.theta[0, j] == pytest.approx(0.0, abs=1e-9)
+    for ci in (fit.ci95, fit.ci95_cluster, fit.shown_intervals()[0]):
+        assert 0.0 <= ci[0, j, 0] <= ci[0, j, 1] <= 5.0
+    assert fit.interval_cut[0, j]
+    assert "intervals cut at the constants' bounds: t_mm" in fit_table(fit)
+    plain = fit_least_squares(bench)  # Sárosi: a3's intervals well inside [-3, 0]
+    assert plain.interval_cut is None
+    assert "ci95_cut_at_bound" not in json.dumps(plain.to_dict())

@@ -111,6 +111,11 @@ def fit_table(result, published=None) -> str:
         widths = [max(len(r[c]) for r in rows) for c in range(len(cols))]
         for r in rows:
             lines.append("  " + "  ".join(v.rjust(w) for v, w in zip(r, widths)))
+        cut = result.interval_cut
+        if cut is not None and cut[i].any():
+            names = ", ".join(n for n, c in zip(result.param_names, cut[i], strict=True) if c)
+            lines.append(f"  intervals cut at the constants' bounds: {names} (an end past "
+                         "what the model allows is shown at the bound)")
         lines.append("")
     kinds = {result.shown_of(i) for i in range(len(result.muscles))}
     wald = f"Wald intervals with Student-t (n − {result.theta.shape[1]} dof), as Excel reports them"

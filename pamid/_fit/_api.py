@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .._data._bench import BenchData
-from .._inference import scale_covariance
+from .._inference import cut_at_bounds, scale_covariance
 from .._lanes._batch import FitData, pack_rows
 from .._solvers import as_solver
 from . import _correlated, _intervals
@@ -76,6 +76,9 @@ class FitResult:
     interval_of: tuple[str, ...] = ()
     se_cluster: np.ndarray | None = None  # standard errors of the cluster interval (M, p)
     se_hac: np.ndarray | None = None
+    # (M, p): True where an interval of the constant was cut at the fit's bounds (the
+    # model's physical ones, or the user's); None where none was.
+    interval_cut: np.ndarray | None = None
 
     def shown_of(self, i: int) -> str:
         """The kind of interval shown for muscle ``i``: "wald-t", "cluster" or "hac"."""
@@ -168,7 +171,10 @@ def fit_columns(result: FitResult) -> tuple[list[tuple[str, object]], tuple[str,
                     ("float", result.se[:, j])]
         for _, arr in optional:
             columns += [("float", arr[:, j, 0]), ("float", arr[:, j, 1])]
-    return columns, tuple(key for key, _ in optional)
+        if result.interval_cut is not None:
+            columns.append(("bool", result.interval_cut[:, j].tolist()))
+    keys = tuple(key for key, _ in optional)
+    return columns, keys + (("ci95_cut_at_bound",) if result.interval_cut is not None else ())
 
 
 def muscle_entry(result: FitResult, values, optional: tuple[str, ...]) -> dict:
@@ -185,7 +191,10 @@ def muscle_entry(result: FitResult, values, optional: tuple[str, ...]) -> dict:
                  "se": next(values), "ci95_wald": [next(values), next(values)],
                  "se_wald": next(values), "unit": result.param_units[name]}
         for key in optional:
-            entry[key] = [next(values), next(values)]
+            if key == "ci95_cut_at_bound":  # one flag: the intervals were cut at a bound
+                entry[key] = next(values)
+            else:
+                entry[key] = [next(values), next(values)]
         params[name] = entry
     return {**head, "params": params}
 
@@ -516,6 +525,11 @@ def fit_least_squares(
                                                                  muscles=muscles, width=width))
     correlated = _correlated.for_fit(spec, data, theta, intervals, trials, level, lag1=lag1,
                                      show=show, curves_of=curves_of)
+    # Every interval is cut at the fit's bounds (the user's, else the model's physical ones):
+    # a wall thickness held at 0 is not reported as possibly -3 mm (the profile's ends are
+    # within them already).
+    ci95 = np.stack([lo, hi], axis=-1)
+    ci95, ci_boot, cut = _cut_at_bounds(spec, bounds, ci95, ci_boot, correlated)
     return FitResult(
         model=spec.name,
         param_names=spec.param_names,
@@ -523,7 +537,7 @@ def fit_least_squares(
         muscles=names,
         theta=theta,
         se=se,
-        ci95=np.stack([lo, hi], axis=-1),
+        ci95=ci95,
         ci95_profile=ci_profile,
         ci95_bootstrap=ci_boot,
         covariance=covariance,
@@ -540,5 +554,30 @@ def fit_least_squares(
         spec=spec,
         messages=messages,
         status=status,
+        interval_cut=cut,
         **correlated,
     )
+
+
+def _cut_at_bounds(spec, bounds, ci95, ci_boot, correlated):
+    """The fit's Wald, bootstrap and sandwich intervals cut at its bounds
+    (:func:`pamid._inference.cut_at_bounds`; ``correlated``'s in place). Returns (ci95,
+    ci_boot, cut): ``cut`` (M, p), True where an interval of the constant was cut, or None
+    where the fit has no bounds or none was."""
+    lower, upper = bounds_arrays(spec, bounds)
+    if lower is None:
+        return ci95, ci_boot, None
+    cut = np.zeros(ci95.shape[:-1], dtype=bool)
+
+    def one(ci):
+        if ci is None:
+            return None
+        lo, hi, c = cut_at_bounds(ci[..., 0], ci[..., 1], (lower, upper))
+        cut[...] |= c
+        return np.stack([lo, hi], axis=-1)
+
+    ci95, ci_boot = one(ci95), one(ci_boot)
+    for key in ("ci95_cluster", "ci95_hac"):
+        if correlated.get(key) is not None:
+            correlated[key] = one(correlated[key])
+    return ci95, ci_boot, (cut if cut.any() else None)

@@ -37,14 +37,18 @@ def wald_interval(value, se, dof, level: float = 0.95):
 
 def cut_at_bounds(lower, upper, bounds=(-np.inf, np.inf)):
     """An interval (``lower``, ``upper``) of a constant that physics keeps within ``bounds``
-    (a slip weight ≥ 0, a friction torque ≥ 0) cut at them: (lower, upper, cut), ``cut``
+    (a slip weight ≥ 0, a wall thickness ≥ 0) cut at them: (lower, upper, cut), ``cut``
     True where either end moved. The true value lies within the bounds, so the cut
     interval covers it whenever the whole one does: the coverage is unchanged, and no end
-    says the constant may be what physics forbids. NaN ends stay NaN."""
-    lo_b, hi_b = (float(b) for b in bounds)
-    lower, upper = float(lower), float(upper)
-    cut = bool(lower < lo_b or upper > hi_b)
-    return (lo_b if lower < lo_b else lower), (hi_b if upper > hi_b else upper), cut
+    says the constant may be what physics forbids. NaN ends stay NaN. Broadcasts (arrays
+    of ends and of bounds); scalars in, Python scalars out."""
+    lo_b, hi_b = (np.asarray(b, dtype=np.float64) for b in bounds)
+    lower, upper = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
+    below, above = lower < lo_b, upper > hi_b
+    out_lo, out_hi, cut = np.where(below, lo_b, lower), np.where(above, hi_b, upper), below | above
+    if out_lo.ndim == 0 and out_hi.ndim == 0:
+        return float(out_lo), float(out_hi), bool(cut)
+    return out_lo, out_hi, cut
 
 
 def wald(theta, jtj_inv, sse, n, level: float = 0.95):
