@@ -980,7 +980,8 @@ def intervals(problem: StaticProblem, fit: SetFit, level: float = 0.95) -> list[
                 lo, hi = wald_interval(v, se[j], dof, level)
                 # The constant cannot lie past its physical bound (a slip weight below 0):
                 # the interval is cut there (pamid._inference.cut_at_bounds).
-                lo, hi, cut = cut_at_bounds(lo, hi, *e.bounds[k:k + 1])
+                lo, hi, cut = cut_at_bounds(lo, hi, e.bounds[k] if e.bounds else
+                                            (-math.inf, math.inf))
                 consts[pname] = {"value": v, "ci95": [float(lo), float(hi)], "unit": unit}
                 if cut:
                     consts[pname]["ci95_cut_at_bound"] = True

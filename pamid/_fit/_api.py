@@ -141,17 +141,23 @@ def json_head(result: FitResult) -> dict:
     }
 
 
-def fit_columns(result: FitResult) -> tuple[list[tuple[str, object]], tuple[str, ...]]:
+def fit_columns(result: FitResult) -> tuple[list[tuple[str, object]],
+                                            tuple[tuple[str, bool], ...]]:
     """The muscles' values as columns, in the order :func:`muscle_entry` takes them: one
     ``(kind, values)`` per value of a muscle's entry, ``values`` over the muscles and
     ``kind`` one of "text" (a list of str or None), "int", "bool" (lists) and "float" (an
-    array; NaN and ±inf are null in JSON); and the optional interval kinds present.
-    :meth:`FitResult.to_dict` makes them plain values, ``pamid.report.fit_json`` JSON text."""
-    optional = [(key, arr) for key, arr in (("ci95_profile", result.ci95_profile),
-                                            ("ci95_bootstrap", result.ci95_bootstrap),
-                                            ("ci95_cluster", result.ci95_cluster),
-                                            ("ci95_hac", result.ci95_hac))
+    array; NaN and ±inf are null in JSON); and the optional values of a constant present,
+    as (key, whether it is a pair): the interval kinds computed, and where an interval was
+    cut at a bound, that flag. :meth:`FitResult.to_dict` makes them plain values,
+    ``pamid.report.fit_json`` JSON text."""
+    # (key, kind, values (M, p, 2) for an interval or (M, p) for one value per constant)
+    optional = [(key, "float", arr) for key, arr in (("ci95_profile", result.ci95_profile),
+                                                     ("ci95_bootstrap", result.ci95_bootstrap),
+                                                     ("ci95_cluster", result.ci95_cluster),
+                                                     ("ci95_hac", result.ci95_hac))
                 if arr is not None]
+    if result.interval_cut is not None:
+        optional.append(("ci95_cut_at_bound", "bool", result.interval_cut))
     m = len(result.muscles)
     lag1 = np.full(m, np.nan) if result.residual_lag1 is None else result.residual_lag1
     notes = [result.interval_notes[i] if i < len(result.interval_notes) else None
@@ -169,15 +175,13 @@ def fit_columns(result: FitResult) -> tuple[list[tuple[str, object]], tuple[str,
                     ("float", ci[:, j, 1]), ("float", se[:, j]),
                     ("float", result.ci95[:, j, 0]), ("float", result.ci95[:, j, 1]),
                     ("float", result.se[:, j])]
-        for _, arr in optional:
-            columns += [("float", arr[:, j, 0]), ("float", arr[:, j, 1])]
-        if result.interval_cut is not None:
-            columns.append(("bool", result.interval_cut[:, j].tolist()))
-    keys = tuple(key for key, _ in optional)
-    return columns, keys + (("ci95_cut_at_bound",) if result.interval_cut is not None else ())
+        for _, kind, arr in optional:
+            columns += ([(kind, arr[:, j, 0]), (kind, arr[:, j, 1])] if arr.ndim == 3
+                        else [(kind, arr[:, j].tolist() if kind == "bool" else arr[:, j])])
+    return columns, tuple((key, arr.ndim == 3) for key, _, arr in optional)
 
 
-def muscle_entry(result: FitResult, values, optional: tuple[str, ...]) -> dict:
+def muscle_entry(result: FitResult, values, optional: tuple[tuple[str, bool], ...]) -> dict:
     """One muscle's entry of the JSON document, its values taken from the iterator
     ``values`` in order (the order of :func:`fit_columns`)."""
     head = {"muscle": next(values), "n": next(values), "rmse_N": next(values),
@@ -190,11 +194,8 @@ def muscle_entry(result: FitResult, values, optional: tuple[str, ...]) -> dict:
         entry = {"value": next(values), "ci95": [next(values), next(values)],
                  "se": next(values), "ci95_wald": [next(values), next(values)],
                  "se_wald": next(values), "unit": result.param_units[name]}
-        for key in optional:
-            if key == "ci95_cut_at_bound":  # one flag: the intervals were cut at a bound
-                entry[key] = next(values)
-            else:
-                entry[key] = [next(values), next(values)]
+        for key, pair in optional:
+            entry[key] = [next(values), next(values)] if pair else next(values)
         params[name] = entry
     return {**head, "params": params}
 

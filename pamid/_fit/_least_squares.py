@@ -123,18 +123,19 @@ def least_squares(
         max_steps, rtol, atol: the step budget and stopping tolerances (with ``bounds`` the
             budget is at least 200 steps).
         with_statistics: (not with ``bounds``) also the statistics at the constants
-            (:func:`statistics` with the lag-1 sums), from the same compiled call where the
-            model's written-out Gauss–Newton solves (one program and one pass of the
-            samples fewer: benchmarks/README.md, "The solve and its statistics in one
-            program"), else from the statistics' own program, compiled once for every
-            solver rather than into each.
+            (:func:`statistics` with the lag-1 sums) where the model's written-out
+            Gauss–Newton solves, from the same compiled call (one program and one pass of
+            the samples fewer: benchmarks/README.md, "The solve and its statistics in one
+            program"); None for the other solvers, whose caller computes them once with
+            :func:`statistics` at the constants it keeps (one program for every solver,
+            and no second pass where a retry changes some lanes).
 
     Returns:
         A :class:`~pamid._solvers.Solution` with a leading lane axis, as NumPy arrays:
         ``params``, ``result`` (``converged``; ``nonfinite`` where a constant is not
         finite; ``max_steps`` where the budget ran out; ``stalled`` where the solver
         stopped short of its tolerance before that), ``steps``, and with
-        ``with_statistics`` the ``statistics`` and their ``sse``.
+        ``with_statistics`` the kernel's ``statistics`` and their ``sse``.
     """
     if with_statistics and bounds is not None:
         raise ValueError("with_statistics is for fits without bounds")
@@ -194,8 +195,6 @@ def least_squares(
             theta0, data.x, data.y, data.w,
             cache_key=_key("solve", model, solver.name, max_steps, rtol, atol),
         )
-        if with_statistics:
-            stats = statistics(model, np.asarray(theta), data, lag1=True)
     return _solution(theta, ok, steps, budget, stats)
 
 
@@ -204,7 +203,8 @@ def solve(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", theta
           with_statistics: bool = False):
     """:func:`least_squares` as a tuple, as ``pamid.engine.solve`` has returned it:
     ``(theta, converged, n_steps)`` as NumPy arrays with a leading muscle axis, and with
-    ``with_statistics`` a fourth item, the statistics at those constants."""
+    ``with_statistics`` a fourth item, the kernel's statistics at those constants (None
+    for the other solvers)."""
     sol = least_squares(spec, data, solver=solver, theta0=theta0, bounds=bounds,
                         max_steps=max_steps, rtol=rtol, atol=atol,
                         with_statistics=with_statistics)
