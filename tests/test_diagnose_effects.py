@@ -137,9 +137,10 @@ def test_compliance_force_and_its_derivatives_are_those_of_the_fixed_point(theta
     c = 0.004  # %/N: 600 N shift the contraction by 2.4 %
     slot = [d.name for d in transforms()].index("compliance")
 
-    def force(q):
+    def force(q):  # the refit model with no linear slot: (a1…a6, the transforms' constants)
         tv = jax.numpy.zeros(len(transforms())).at[slot].set(q[6])
-        return with_effects(spec, True, 0).transformed(q[:6], tv, x)
+        return with_effects(spec, True, 0).predict(jax.numpy.concatenate([q[:6], tv]),
+                                                   (*x, np.zeros((len(p_bar), 0))))
 
     def fixed_point(q):  # bisection on F − F_model(p, κ + c·F), one sample at a time
         out = []
@@ -166,22 +167,34 @@ def test_compliance_force_and_its_derivatives_are_those_of_the_fixed_point(theta
 
 
 def test_a_model_with_effects_is_a_model_the_one_entry_fits(theta31):
-    """The diagnosis's refit model wraps the base model (``with_effects``): a ModelSpec with
-    names, units and the base's bounds, whose structured Jacobian is that of its
-    prediction, and which ``pamid.engine.solve`` fits like any model: noise-free Sárosi data
-    with a rig in series (c), a pressure-sensor offset (δ) and a linear drift (φ) give
-    back every constant from a start 2 % off."""
+    """The diagnosis's refit model is the base model wrapped in each effect, each a model
+    (``with_effects``: the linear slots around the sensor offset around the compliance
+    around Sárosi eq. 2.1): a ModelSpec with names, units and the base's and effects'
+    bounds, whose structured Jacobian is that of its prediction, and which
+    ``pamid.engine.solve`` fits like any model: noise-free Sárosi data with a rig in series
+    (c), a pressure-sensor offset (δ) and a linear drift (φ) give back every constant from
+    a start 2 % off."""
     import jax.numpy as jnp
 
-    from pamid._effects._model import WithEffects, with_effects
+    from pamid._effects._compliance import Compliance
+    from pamid._effects._model import with_effects
+    from pamid._effects._sensor_offset import SensorOffset
+    from pamid._effects._wrappers import LinearTerms
     from pamid._fit._spec import SAROSI, ModelSpec
 
     model = with_effects(SAROSI, True, 1)
-    assert isinstance(model, ModelSpec) and isinstance(model, WithEffects)
+    assert isinstance(model, ModelSpec) and isinstance(model, LinearTerms)
+    assert isinstance(model.base, SensorOffset) and isinstance(model.base.base, Compliance)
+    assert model.base.base.base is SAROSI and model.base.base.implicit
+    assert not with_effects(SAROSI, False, 1).base.base.implicit
     assert model is with_effects(SAROSI, True, 1)  # one per arguments: programs reused
     assert model.param_names == (*SAROSI.param_names, "c", "delta_kPa", "phi0")
     assert model.param_units["c"] == "%/N" and model.param_units["delta_kPa"] == "kPa"
     assert model.bounds[0][2] == -3.0 and model.bounds[1][-1] == np.inf
+    assert model.bounds[0][6] == 0.0  # a spring in series: c ≥ 0
+    # one effect alone is a model too: Sárosi eq. 2.1 with a rig in series
+    alone = Compliance.wrap(SAROSI, implicit=True)
+    assert alone.param_names == (*SAROSI.param_names, "c") and alone.bounds[0][-1] == 0.0
 
     rng = np.random.default_rng(3)
     n = 400
@@ -200,6 +213,14 @@ def test_a_model_with_effects_is_a_model_the_one_entry_fits(theta31):
                                       theta0=truth[None] * 1.02, max_steps=200)
     assert ok[0]
     np.testing.assert_allclose(theta[0], truth, rtol=1e-6)
+    # the compliance alone, through the one entry
+    truth = truth[:7]
+    y = np.asarray(alone.predict(jnp.asarray(truth), x[:-1]))
+    sol = pamid.engine.least_squares(
+        alone, data._replace(x=data.x[:-1], y=jnp.asarray(y)[None]),
+        solver="levenberg-marquardt", theta0=truth[None] * 1.02, max_steps=200)
+    assert sol.converged[0]
+    np.testing.assert_allclose(sol.params[0], truth, rtol=1e-6)
 
 
 # -- physical bounds ---------------------------------------------------------------------------

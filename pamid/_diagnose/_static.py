@@ -53,8 +53,9 @@ from .._data._holdout import holdout_units
 from .._effects._base import Effect, FileContext, MuscleContext, physical_bounds
 from .._effects._covariate import COVARIATE_DEGREE
 from .._effects._definitions import STATIC_EFFECT_DEFINITIONS, transforms
-from .._effects._model import transform_inputs, with_effects
+from .._effects._model import with_effects
 from .._effects._steps import moving_steps, rod_steps, time_since_step
+from .._effects._wrappers import transform_inputs
 from .._fit._api import fit_least_squares
 from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
 from .._fit._spec import ModelSpec
@@ -462,7 +463,7 @@ class StaticProblem:
         self.col_bounds: list[tuple[float, float]] = []
         for d in STATIC_EFFECT_DEFINITIONS:
             for name, covariate, consts in d.members(self.file):
-                if d.transform is not None:
+                if d.model is not None:
                     cols, tr = (), slot[d.name]
                 else:
                     cols, tr = tuple(range(col, col + len(consts))), None

@@ -155,9 +155,10 @@ class EffectDefinition:
             :attr:`injectors` gives them as a tuple.
         features: ``features(muscle, col, grid_value) -> list of columns`` (N per unit of
             each constant); ``col(name)`` reads a covariate (clamped to a fold's range).
-        transform: ``transform(x, value, force, io) -> x``: the model's inputs as the
-            muscle feels them, for a transform effect (``io`` names the inputs' places).
-        implicit: the transform depends on the force (the force law becomes implicit).
+        model: a transform effect as a model that wraps its base (an
+            :class:`~pamid._effects._wrappers.InputTransform` subclass in the effect's
+            module: the inputs as the muscle feels them); None for a feature effect, whose
+            columns a :class:`~pamid._effects._wrappers.LinearTerms` adds.
         grid: a constant chosen over ``grid_values(file, muscle)`` (see the module).
         applies: ``applies(file) -> bool``, beyond having its covariates.
         check: ``check(values, file, muscle) -> message or None``: a physical condition
@@ -181,8 +182,7 @@ class EffectDefinition:
     constants: tuple[Constant, ...]
     injector: str | tuple[str, ...]
     features: Callable | None = None
-    transform: Callable | None = None
-    implicit: bool = False
+    model: type | None = None
     grid: Constant | None = None
     grid_values: Callable | None = None
     applies: Callable | None = None
@@ -191,6 +191,11 @@ class EffectDefinition:
     form_of: str | None = None
     more: Callable | None = None
     derived: Callable | None = None
+
+    @property
+    def implicit(self) -> bool:
+        """Whether the transform reads the force: the force law becomes implicit."""
+        return self.model is not None and self.model.depends_on_force
 
     @property
     def injectors(self) -> tuple[str, ...]:

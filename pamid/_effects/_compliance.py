@@ -1,18 +1,30 @@
-"""The ``compliance`` effect: something in series with the force stretches under load; its
-definition and injector."""
+"""The ``compliance`` effect: something in series with the force stretches under load; the
+effect as a model (:class:`Compliance`), its definition and its injector."""
 
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 from ._base import Constant, EffectDefinition
 from ._inject import Injected
+from ._wrappers import InputTransform
 
 
-def _compliance_transform(x, c, force, io):
-    x = list(x)
-    x[io["contraction"]] = x[io["contraction"]] + c * force
-    return tuple(x)
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Compliance(InputTransform):
+    """A model with a spring in series: F solves F = F_base(p, x + c·F), ``c`` ≥ 0 in the
+    contraction's unit per newton (:func:`compliance`). ``Compliance.wrap(base,
+    implicit=True)``."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (Constant("c", "{x}/N", lower=0.0),)
+    depends_on_force: ClassVar[bool] = True
+
+    @classmethod
+    def transform(cls, x, t, force, io):
+        x = list(x)
+        x[io["contraction"]] = x[io["contraction"]] + t[..., 0] * force
+        return tuple(x)
 
 
 def compliance() -> EffectDefinition:
@@ -29,9 +41,8 @@ def compliance() -> EffectDefinition:
     :class:`pamid._effects._compliance.InjectedCompliance`.
     """
     return EffectDefinition(
-        name="compliance", covariates=(), constants=(Constant("c", "{x}/N", lower=0.0),),
-        injector="pamid._effects._compliance.InjectedCompliance",
-        transform=_compliance_transform, implicit=True,
+        name="compliance", covariates=(), constants=Compliance.constants,
+        injector="pamid._effects._compliance.InjectedCompliance", model=Compliance,
         applies=lambda f: f.spec.contraction_column in f.spec.columns)
 
 

@@ -27,7 +27,7 @@ STATIC_EFFECT_DEFINITIONS: tuple[EffectDefinition, ...] = (
 def transforms() -> tuple[EffectDefinition, ...]:
     """The effects that transform the model's inputs, in the order of their constants in
     the lanes' parameter layout."""
-    return tuple(d for d in STATIC_EFFECT_DEFINITIONS if d.transform is not None)
+    return tuple(d for d in STATIC_EFFECT_DEFINITIONS if d.model is not None)
 
 
 DECAY_EFFECT_DEFINITIONS: tuple[DecayEffect, ...] = (

@@ -1,9 +1,14 @@
-"""The ``sensor_offset`` effect: an offset of the logged pressure; its definition (its
-injectors are fields of the virtual protocols)."""
+"""The ``sensor_offset`` effect: an offset of the logged pressure; the effect as a model
+(:class:`SensorOffset`) and its definition (its injectors are fields of the virtual
+protocols)."""
 
 from __future__ import annotations
 
+import dataclasses
+from typing import ClassVar
+
 from ._base import Constant, EffectDefinition, FileContext
+from ._wrappers import InputTransform
 
 #: Largest pressure-sensor offset that is still an offset, as a share of the largest
 #: logged pressure; beyond it the logged pressure is not the muscle's pressure at all.
@@ -15,11 +20,21 @@ def _offset_bounds(file: FileContext) -> tuple[float, float]:
     return -b, b
 
 
-def _offset_transform(x, delta_kpa, force, io):
-    x = list(x)
-    i, per_kpa = io["pressure"]
-    x[i] = x[i] + delta_kpa * per_kpa
-    return tuple(x)
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class SensorOffset(InputTransform):
+    """A model whose logged pressure is off by δ: F = F_base(p_logged + δ, x), δ in kPa
+    (:func:`sensor_offset`; its bound, a share of the file's largest pressure, is the
+    file's). ``SensorOffset.wrap(base)``."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (
+        Constant("delta_kPa", "kPa", bounds=_offset_bounds),)
+
+    @classmethod
+    def transform(cls, x, t, force, io):
+        x = list(x)
+        i, per_kpa = io["pressure"]
+        x[i] = x[i] + t[..., 0] * per_kpa
+        return tuple(x)
 
 
 def sensor_offset() -> EffectDefinition:
@@ -37,8 +52,8 @@ def sensor_offset() -> EffectDefinition:
     """
     return EffectDefinition(
         name="sensor_offset", covariates=(),
-        constants=(Constant("delta_kPa", "kPa", bounds=_offset_bounds),),
+        constants=SensorOffset.constants,
         injector=("pamid._virtual._isometric.IsometricProtocol.pressure_offset_kPa",
                   "pamid._virtual._sweeps.SarosiProtocol.pressure_offset_kPa"),
-        transform=_offset_transform,
+        model=SensorOffset,
         applies=lambda f: "pressure_kPa" in f.spec.columns)

@@ -6,7 +6,7 @@ Every least-squares problem that pamid solves with its own loop goes through
 :func:`levenberg_marquardt`, and every one of them is a model value fitted to a lane's data
 through :func:`fit_lane` (a :class:`~pamid._fit._spec.ModelSpec`, whose ``predict`` and
 ``value_and_jacobian`` make the weighted residual): the diagnosis refits (a model with
-candidate effects, :class:`~pamid._effects._model.WithEffects`, some constants held by a
+candidate effects, :func:`~pamid._effects._model.with_effects`, some constants held by a
 mask so that every effect set of a batch has the same shape), the free-decay trajectory
 fits (linear, :mod:`pamid._decays._analysis`; with friction, :mod:`pamid._decays._coulomb`)
 and the joint's decay fits (:mod:`pamid._decays._joint_fit`), in constants divided by a
@@ -161,7 +161,7 @@ def fit_lane(model, theta0, x, y, w, mask=None, *, max_steps: int, rtol: float,
     ``rtol`` of itself plus ``floor_per_sample`` (an absolute tolerance squared) per sample
     of weight > 0. The fits within bounds,
     the diagnosis refits (a model with candidate effects,
-    :class:`pamid._effects._model.WithEffects`) and the free-decay fits (trajectory,
+    :func:`pamid._effects._model.with_effects`) and the free-decay fits (trajectory,
     friction, joint: :class:`pamid._fit._spec.Scaled` models) call it. Rows of weight 0
     never count, even where the model is not finite there (padding)."""
     sw = jnp.sqrt(w)
