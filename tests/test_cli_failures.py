@@ -335,25 +335,31 @@ def test_lane_temporaries_grow_linearly_with_the_rows(tmp_path):
     """XLA's own accounting of the compiled lanes: 10× the rows, ~10× the temporaries (the
     SVD of the tall Jacobian made it ~100×: 6.4 GB for 8 lanes of 10,000 rows)."""
     temps = {}
+    from pamid._effects._model import with_effects
+    from pamid._fit._least_squares import _own_loop
+
     for rows in (2000, 20000):
         problem = _problem(rows, tmp_path)
         lanes = 8
-        # colmask: the transforms' flags (compliance, sensor offset), then the 4 columns'.
         n_tr = len(_static.transforms())
         k = problem.spec.n_params
-        args = (np.zeros(lanes, int), np.arange(lanes) % 6,
-                np.tile(np.arange(4), (lanes, 1)), np.ones((lanes, n_tr + 4)),
-                np.ones((lanes, k)), np.tile(np.asarray(problem.theta0)[0], (lanes, 1)),
-                # the effects' bounds (transforms, then the 4 slots): unbounded here
-                np.full((lanes, n_tr + 4), -np.inf), np.full((lanes, n_tr + 4), np.inf))
-        compiled = _static._solve_lanes_jit.lower(
-            problem.spec, True, problem._shared_arrays(), *args).compile()
+        p = k + n_tr + 4
+        # the refits as the diagnosis runs them: four effect columns, the transforms free
+        # (the implicit compliance), unbounded
+        index = (np.zeros(lanes, int), np.arange(lanes) % 6, np.tile(np.arange(4), (lanes, 1)),
+                 np.ones((lanes, 4)))
+        theta0 = np.concatenate([np.tile(np.asarray(problem.theta0)[0], (lanes, 1)),
+                                 np.zeros((lanes, n_tr + 4))], axis=1)
+        bounds = (np.full((lanes, p), -np.inf), np.full((lanes, p), np.inf))
+        compiled = _own_loop.lower(
+            with_effects(problem.spec, True, 4), _static.REFIT_SOLVER, _static.lane_data,
+            _static.MAX_ITER, _static.RTOL, ("prediction",), problem._shared_arrays(),
+            theta0, np.ones((lanes, p)), bounds, index).compile()
         temps[rows] = compiled.memory_analysis().temp_size_in_bytes
         assert temps[rows] / (lanes * rows) <= _static.LANE_BYTES_PER_SAMPLE
         # the statistics of the fits to all data (QR of the Jacobian: n × p, never n × n)
-        p = k + n_tr + 4
         stats = _static._lane_statistics_jit.lower(
-            problem.spec, True, problem._shared_arrays(), args[0], args[2], args[3],
+            problem.spec, True, problem._shared_arrays(), index[0], index[2], index[3],
             np.ones((lanes, p)), np.zeros((lanes, p))).compile()
         temps[rows, "statistics"] = stats.memory_analysis().temp_size_in_bytes
         assert temps[rows, "statistics"] / (lanes * rows) <= _static.LANE_BYTES_PER_SAMPLE

@@ -13,7 +13,7 @@ zero; a constant's interval ends to 1e-8 of the constant's size, :func:`_scale`)
 differs from run to run is left out: the wall time and the input's path ("source", "file").
 
 The measured files' diagnoses are not recorded: some of their refits end on the step budget
-in a flat valley of constants that trade off (:func:`pamid._diagnose._static._reached`), and
+in a flat valley of constants that trade off (:func:`pamid._diagnose._static.reached`), and
 their held-out errors then move with the rounding of any change (3e-7 on the map, 2e-6 on
 the AARL muscle when the effects became model wrappers, 404d85a), not with its numbers.
 """

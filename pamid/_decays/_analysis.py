@@ -103,21 +103,20 @@ cannot be checked.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field, replace
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
 from .._errors import BenchDataError
+from .._fit._least_squares import least_squares
 from .._fit._spec import ModelSpec, scaled
 from .._inference import covariance, t_critical, unscaled_covariance, wald_interval
 from .._io import json_ready as _plain
+from .._lanes._batch import FitData
 from .._sim._oscillator import DampedOscillator, oscillator_response
-from .._solvers import CONVERGED, fit_lane
+from .._solvers import ProjectedLevenbergMarquardt
 
 __all__ = [
     "MIN_TRAVEL_NOISE",
@@ -881,16 +880,16 @@ TRAJECTORY = scaled(Trajectory(
     output=("angle", "rad")))
 
 
-@functools.partial(jax.jit, static_argnames=("max_steps",))
 def _fit_batch(p0, scale, t, y, w, max_steps):
-    def one(p0, scale, t, y, w):
-        # pamid's one least-squares entry of a lane; the step would lower the SSE by at
-        # most 1e-12 of itself plus (1e-12 rad)² per sample.
-        sol = fit_lane(TRAJECTORY, p0, (t, scale), y, w, max_steps=max_steps, rtol=1e-12,
-                       floor_per_sample=1e-24)
-        return sol.params * scale, sol.residual, sol.jac, sol.result == CONVERGED, sol.steps
-
-    return jax.vmap(one)(p0, scale, t, y, w)
+    """Every window's trajectory fit (one lane each) through pamid's one least-squares
+    entry, by its own Levenberg–Marquardt: stops where a step would lower the SSE by at most
+    1e-12 of itself plus (1e-12 rad)² per sample. Returns the constants (unscaled), the
+    weighted residual, its Jacobian (in the scaled constants), convergence and steps."""
+    data = FitData(x=(t, scale), y=y, w=w, curve=np.zeros(np.shape(t), np.int32))
+    sol = least_squares(TRAJECTORY, data, solver=ProjectedLevenbergMarquardt(
+        floor_per_sample=1e-24), theta0=p0, max_steps=max_steps, rtol=1e-12,
+        outputs=("jacobian",))
+    return sol.params * scale, sol.residual, sol.jac, sol.converged, sol.steps
 
 
 @dataclass(frozen=True)
@@ -1003,9 +1002,7 @@ def fit_decay_trajectories(
         tt[i, len(t):] = t[-1]
     scale = np.asarray(scales, float)
     p0 = np.asarray(p0s, float) / scale
-    theta, res, jac, ok, steps = _fit_batch(jnp.asarray(p0), jnp.asarray(scale),
-                                            jnp.asarray(tt), jnp.asarray(yy), jnp.asarray(ww),
-                                            max_steps)
+    theta, res, jac, ok, steps = _fit_batch(p0, scale, tt, yy, ww, max_steps)
     theta, res, jac = np.asarray(theta), np.asarray(res), np.asarray(jac)
     fits = []
     n_par = len(FIT_NAMES)

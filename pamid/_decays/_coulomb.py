@@ -78,10 +78,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._effects._definitions import DECAY_EFFECT_DEFINITIONS
+from .._fit._least_squares import least_squares
 from .._fit._spec import ModelSpec, scaled
 from .._inference import covariance, wald_interval
+from .._lanes._batch import FitData
 from .._sim._oscillator import cos_sinc
-from .._solvers import CONVERGED, fit_lane
+from .._solvers import ProjectedLevenbergMarquardt
 from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
 
 __all__ = [
@@ -237,20 +239,22 @@ class FrictionResponse(ModelSpec):
 
 
 @functools.cache
-def _friction_model(n_half: int) -> FrictionResponse:
-    return FrictionResponse(
+def _friction_model(n_half: int) -> ModelSpec:
+    """The friction model of ``n_half`` half-cycles, in constants divided by each lane's
+    scale (:func:`~pamid._fit._spec.scaled`): one object per ``n_half``, so that its
+    compiled programs are reused."""
+    return scaled(FrictionResponse(
         n_half=n_half, name="decay_with_effects", param_names=FIT_NAMES,
         param_units=dict(zip(FIT_NAMES, ("1", "rad/s", "rad", "rad/s", "rad", "rad",
                                          "rad/s"), strict=True)),
         units={"angle": "rad", "time": "s"}, columns=("time_s",),
         source="the linear decay with Coulomb friction and a drifting equilibrium",
-        output=("angle", "rad"))
+        output=("angle", "rad")))
 
 
-@functools.partial(jax.jit, static_argnames=("n_half", "max_steps"))
 def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
-    """One Levenberg–Marquardt solve per lane, by pamid's one masked loop
-    (:func:`pamid._solvers.levenberg_marquardt`).
+    """Every lane through pamid's one least-squares entry, by its own Levenberg–Marquardt
+    with the effects not in a lane's set held (``mask``).
 
     Stops when the Gauss–Newton step would lower the SSE by less than ``rtol`` of itself
     plus (:data:`ATOL_RAD`)² per sample (the second term for data the model fits exactly):
@@ -258,16 +262,12 @@ def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
     (also where w = 0: the held-out predictions), the weighted Jacobian there, the
     convergence flag and the number of steps.
     """
-
-    model = scaled(_friction_model(n_half))
-
-    def one(p0, scale, mask, t, y, w):
-        sol = fit_lane(model, p0, (t, scale), y, w, mask, max_steps=max_steps, rtol=rtol,
-                       floor_per_sample=ATOL_RAD**2)
-        return (sol.params, model.predict(sol.params, (t, scale)) - y, sol.jac,
-                sol.result == CONVERGED, sol.steps)
-
-    return jax.vmap(one)(p0, scale, mask, t, y, w)
+    data = FitData(x=(t, scale), y=y, w=w, curve=np.zeros(np.shape(t), np.int32))
+    sol = least_squares(_friction_model(n_half), data,
+                        solver=ProjectedLevenbergMarquardt(floor_per_sample=ATOL_RAD**2),
+                        theta0=p0, mask=mask, max_steps=max_steps, rtol=rtol,
+                        outputs=("jacobian", "prediction"))
+    return sol.params, sol.prediction - np.asarray(y), sol.jac, sol.converged, sol.steps
 
 
 # --------------------------------------------------------------------------------------
@@ -488,10 +488,8 @@ def fit_decay_models(
                 lane_y.append(yy)
                 lane_w.append(ww)
     p, r, jw, ok, steps = _fit_lanes(
-        *(
-            jnp.asarray(np.asarray(a, float))
-            for a in (lane_p0, lane_scale, lane_mask, lane_t, lane_y, lane_w)
-        ),
+        *(np.asarray(a, float) for a in (lane_p0, lane_scale, lane_mask, lane_t, lane_y,
+                                         lane_w)),
         n_half,
         int(max_steps),
         float(rtol),

@@ -30,6 +30,7 @@ effect), its interval Student-t with the summed residual dof.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -38,11 +39,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._fit._least_squares import least_squares
 from .._fit._spec import ModelSpec, scaled
 from .._inference import standard_errors, wald_interval
+from .._lanes._batch import FitData
 from .._sim._joint_sim import JointArm, arm_rhs, sealed_pressure_laws
 from .._sim._oscillator import rk4_scan
-from .._solvers import CONVERGED, fit_lane
+from .._solvers import ProjectedLevenbergMarquardt
 
 __all__ = ["JOINT_FIT_NAMES", "JointDecayFit", "fit_joint_decays"]
 
@@ -85,32 +88,45 @@ def _unpack(names, p):
 @dataclass(frozen=True, eq=False, kw_only=True)
 class ArmDecay(ModelSpec):
     """One trial's decay of the arm (module text) as a model: ``theta`` = the constants
-    ``names`` (of :data:`JOINT_FIT_NAMES`), no inputs (the trial's n samples, dt apart)."""
+    ``names`` (of :data:`JOINT_FIT_NAMES`), ``x`` = (the joint, a :class:`JointArm`,) (the
+    trial's n samples, dt apart). The arm is an input, not a field, so that one model (and
+    its compiled programs) serves every arm of the same shape."""
 
-    arm: JointArm
     dt: float
     n: int
     substeps: int
 
     def predict(self, theta, x):
         g, b0, v0, s, off = _unpack(self.param_names, theta)
-        return _simulate_angle(self.arm, g, b0, v0, s, self.dt, self.n, self.substeps) + off
+        return _simulate_angle(x[0], g, b0, v0, s, self.dt, self.n, self.substeps) + off
 
 
-@eqx.filter_jit
-def _fit_batch(arm, names, method, p0, scale, y, w, dt, n, substeps, rtol, atol, max_steps):
-    model = scaled(ArmDecay(
-        arm=arm, dt=dt, n=n, substeps=substeps, name="joint_decay", param_names=names,
+@functools.cache
+def _arm_model(names: tuple[str, ...], dt: float, n: int, substeps: int) -> ModelSpec:
+    """:class:`ArmDecay` of these constants and samples, in constants divided by each
+    lane's scale (:func:`~pamid._fit._spec.scaled`): one object per arguments."""
+    return scaled(ArmDecay(
+        dt=dt, n=n, substeps=substeps, name="joint_decay", param_names=names,
         param_units={k: JOINT_FIT_NAMES[k] for k in names}, units={"angle": "rad"},
-        columns=(), source="the arm's decay, Cullinan eq. 3–5", output=("angle", "rad")))
+        columns=("joint",), source="the arm's decay, Cullinan eq. 3–5",
+        output=("angle", "rad")))
 
-    def one(p0, scale, y, w):
-        sol = fit_lane(model, p0, (scale,), y, w, max_steps=max_steps, rtol=rtol,
-                       floor_per_sample=atol**2, damping0=_DAMPING0[method])
-        ok = (sol.result == CONVERGED) & jnp.all(jnp.isfinite(sol.residual))
-        return sol.params * scale, sol.residual, sol.jac, ok, sol.steps
 
-    return jax.vmap(one)(p0, scale, y, w)
+def _fit_batch(arm, names, method, p0, scale, y, w, dt, n, substeps, rtol, atol, max_steps):
+    """Every trial (a lane) through pamid's one least-squares entry, by its own
+    Levenberg–Marquardt (damped from the start, or nearly undamped: :data:`_DAMPING0`):
+    the constants (unscaled), the weighted residual and its Jacobian (in the scaled
+    constants), convergence (with a finite residual) and steps."""
+    lanes = np.shape(y)[0]
+    joint = jax.tree.map(lambda v: np.broadcast_to(np.asarray(v, float), (lanes, *np.shape(v))),
+                         arm)
+    data = FitData(x=(joint, scale), y=y, w=w, curve=np.zeros(np.shape(y), np.int32))
+    sol = least_squares(_arm_model(tuple(names), float(dt), int(n), int(substeps)), data,
+                        solver=ProjectedLevenbergMarquardt(floor_per_sample=atol**2,
+                                                           damping0=_DAMPING0[method]),
+                        theta0=p0, max_steps=max_steps, rtol=rtol, outputs=("jacobian",))
+    ok = sol.converged & np.all(np.isfinite(sol.residual), axis=1)
+    return sol.params * scale, sol.residual, sol.jac, ok, sol.steps
 
 
 @dataclass(frozen=True)
@@ -262,8 +278,8 @@ def fit_joint_decays(
     scale = np.stack([np.broadcast_to(typical[k_], (n_trials,)) for k_ in fit], -1)
 
     theta, res, jac, ok, n_steps = _fit_batch(
-        arm, fit, method, jnp.asarray(p0 / scale), jnp.asarray(scale), jnp.asarray(y0),
-        jnp.asarray(w), dt, n, int(substeps), float(rtol), float(atol), int(max_steps))
+        arm, fit, method, p0 / scale, scale, y0, w, dt, n, int(substeps), float(rtol),
+        float(atol), int(max_steps))
     theta, res, jac = np.asarray(theta), np.asarray(res), np.asarray(jac)
     n_par = len(fit)
     dof = n_used - n_par

@@ -57,19 +57,13 @@ from .._effects._model import with_effects
 from .._effects._steps import moving_steps, rod_steps, time_since_step
 from .._effects._wrappers import transform_inputs
 from .._fit._api import fit_least_squares
-from .._fit._least_squares import bounds_arrays, model_at, model_jacobian
+from .._fit._least_squares import bounds_arrays, least_squares, model_at, model_jacobian
 from .._fit._spec import ModelSpec
 from .._inference import cut_at_bounds, residual_variance, unscaled_covariance, wald_interval
 from .._lanes import _export_cache
-from .._lanes._batch import SMALL_BATCH_SAMPLES, items_per_call, map_lanes, pack
+from .._lanes._batch import SMALL_BATCH_SAMPLES, LaneView, items_per_call, map_lanes, pack
 from .._lanes._sharding import lane_devices
-from .._solvers import (
-    CONVERGED,
-    MAX_STEPS,
-    fit_lane,
-    newton_decrement,
-    restrict,
-)
+from .._solvers import CONVERGED, MAX_STEPS, ProjectedLevenbergMarquardt
 from .._units import KPA_PER_BAR, per_l0
 from ._residual import autocorrelation_time, legendre_basis, scaled
 from ._select import SetFit
@@ -664,37 +658,74 @@ class StaticProblem:
                 if e.transform is not None:
                     trmask[i, e.transform] = 1.0
                     implicit[i] |= e.definition.implicit
+        slotmask = colmask
         colmask = np.concatenate([trmask, colmask], axis=1)
-        shared = self._shared_arrays()
-        # Lanes with and without an implicit transform (the compliance) are solved by two
-        # compiled functions: the implicit force law costs four Newton steps that the other
-        # lanes do not need.
+        source = self._shared_arrays()
+        # Lanes with and without an implicit transform (the compliance) are two models, two
+        # calls of the one entry: the implicit force law costs four Newton steps that the
+        # other lanes do not need.
         lane_comp = implicit[lanes_set]
         # The model's constants start at the baseline's; those it holds on a bound are held
-        # there. The others are kept within their bounds inside the solve (a projected
-        # Levenberg–Marquardt): a constant a refit pushes onto its bound is held there.
+        # there. The others are kept within their bounds inside the solve (pamid's own
+        # Levenberg–Marquardt with projected bounds): a constant a refit pushes onto its
+        # bound is held there. The effects' constants start at zero (no effect); those not
+        # in the set are held there (masked); a slip element's weight is kept ≥ 0 (``held``
+        # constants), the others are free: one past its physical bound is reported as what
+        # it would have needed.
         free = self.base_free[lanes_muscle]
-        start = np.asarray(self.theta0, float)[lanes_muscle]
-        params, sse, sse_test, resid, ok, free = _by_kind(
-            lane_comp, lambda flag, sel: _run_lanes(
-                _solve_lanes_jit, "diagnose_lanes", self.spec, flag, shared,
-                lanes_muscle[sel], lanes_fold[sel], cols[lanes_set[sel]],
-                colmask[lanes_set[sel]], free[sel], start[sel],
-                eff_bounds[0][lanes_set[sel]], eff_bounds[1][lanes_set[sel]]))
+        mask = np.concatenate([free, colmask[lanes_set]], axis=1)
+        theta0 = np.concatenate([np.asarray(self.theta0, float)[lanes_muscle],
+                                 np.zeros((len(lanes_set), n_tr + n_slots))], axis=1)
+        k = self.spec.n_params
+        lower = np.full(k, -np.inf) if self.lower is None else np.asarray(self.lower, float)
+        upper = np.full(k, np.inf) if self.upper is None else np.asarray(self.upper, float)
+        lower = np.concatenate([np.tile(lower, (len(lanes_set), 1)),
+                                eff_bounds[0][lanes_set]], axis=1)
+        upper = np.concatenate([np.tile(upper, (len(lanes_set), 1)),
+                                eff_bounds[1][lanes_set]], axis=1)
+        size = items_per_call(n_samples=n, max_lane_samples=CALL_LANE_SAMPLES,
+                              max_lanes=CALL_LANES)
+        p = k + n_tr + n_slots
+        params, sse, pred = np.zeros((len(lanes_set), p)), np.zeros(len(lanes_set)), None
+        result, decrement = np.zeros(len(lanes_set), int), np.zeros(len(lanes_set))
+        free = np.zeros((len(lanes_set), p))
+        for flag in (False, True):
+            sel = np.flatnonzero(lane_comp == flag)
+            if sel.size == 0:
+                continue
+            view = LaneView(source, (lanes_muscle[sel], lanes_fold[sel],
+                                     cols[lanes_set[sel]], slotmask[lanes_set[sel]]),
+                            lane_data, n)
+            sol = least_squares(
+                with_effects(self.spec, bool(flag), n_slots), view, solver=REFIT_SOLVER,
+                theta0=theta0[sel], mask=mask[sel], bounds=(lower[sel], upper[sel]),
+                max_steps=MAX_ITER, rtol=RTOL, outputs=("prediction",), chunk=size)
+            if pred is None:
+                pred = np.zeros((len(lanes_set), n))
+            params[sel], sse[sel], pred[sel] = sol.params, sol.sse, sol.prediction
+            result[sel], decrement[sel], free[sel] = sol.result, sol.decrement, sol.free
+        # Each lane's residual on every row (data − model, the held-out rows too), and its
+        # held-out squared error.
+        w = np.asarray(self.data.w)
+        mu, fo = lanes_muscle, lanes_fold
+        resid = np.asarray(self.data.y)[mu] - pred
+        held = (self.fold[mu] == fo[:, None] - 1) & (fo[:, None] > 0)
+        sse_test = np.sum(np.where(held, w[mu], 0.0) * resid**2, axis=1)
+        n_train = np.sum((w[mu] > 0) & ~held, axis=1)
+        ok = reached(result, decrement, sse, n_train)
         # (JᵀJ)⁻¹ and the numerical rank are asked of the fits to all data only (the
         # intervals, the BIC); the held-out fits need neither.
         full_lanes = np.flatnonzero(lanes_fold == 0)
         stats = _by_kind(
             lane_comp[full_lanes], lambda flag, sel: _run_lanes(
-                _lane_statistics_jit, "diagnose_lane_statistics", self.spec, flag, shared,
+                _lane_statistics_jit, "diagnose_lane_statistics", self.spec, flag, source,
                 lanes_muscle[full_lanes[sel]], cols[lanes_set[full_lanes[sel]]],
-                colmask[lanes_set[full_lanes[sel]]], free[full_lanes[sel]],
+                slotmask[lanes_set[full_lanes[sel]]], free[full_lanes[sel]],
                 params[full_lanes[sel]]))
         jtj_inv = np.zeros((len(lanes_set), *stats[0].shape[1:]))
         rank = np.zeros(len(lanes_set), int)
         jtj_inv[full_lanes], rank[full_lanes] = stats
         n_free = np.sum(free > 0, axis=1)
-        w = np.asarray(self.data.w)
         curve = np.maximum(np.asarray(self.data.curve), 0)
         n_used = np.sum(w > 0, axis=1)
         results = []
@@ -730,14 +761,12 @@ class StaticProblem:
         return results
 
     def _shared_arrays(self):
-        """What every lane gathers from, on the device once: (x, y, w, fold, features,
-        the model's bounds as (lower, upper) or None)."""
+        """What every lane gathers from (:func:`lane_data`), on the device once: (x, y, w,
+        fold, features)."""
         if getattr(self, "_shared", None) is None:
-            bounds = None if self.lower is None else (jnp.asarray(self.lower),
-                                                      jnp.asarray(self.upper))
             self._shared = (tuple(jnp.asarray(xi) for xi in self.data.x),
                             jnp.asarray(self.data.y), jnp.asarray(self.data.w),
-                            jnp.asarray(self.fold), jnp.asarray(self.features), bounds)
+                            jnp.asarray(self.fold), jnp.asarray(self.features))
         return self._shared
 
 
@@ -837,16 +866,13 @@ def _by_kind(implicit, run):
 
 
 def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
-    """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function) over
-    the lanes, in calls of one size for a given sample count: ``CALL_LANES`` lanes, fewer (a
-    power of two) where that many would hold more than ``CALL_LANE_SAMPLES`` lane-samples
-    (pamid's one lane sizer, :func:`pamid._lanes._batch.items_per_call`). Fewer lanes than
-    one call holds are
-    padded (repeating the last lane); more are cut into calls of that size
-    (:func:`pamid._lanes._batch.map_lanes`). One size, whatever the number of lanes: every
-    step of a forward selection, every fold and every diagnosis of muscles of the same
-    sample count reuses one compiled shape (calls sized to the lanes, 16, 32 or 64 of them,
-    compiled up to three shapes per set width, each about a second)."""
+    """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function: the
+    statistics of the refits) over the lanes, in calls of one size for a given sample count,
+    as the refits run (:func:`pamid._fit._least_squares.least_squares` with a lane view):
+    ``CALL_LANES`` lanes, fewer (a power of two) where that many would hold more than
+    ``CALL_LANE_SAMPLES`` lane-samples (pamid's one lane sizer,
+    :func:`pamid._lanes._batch.items_per_call`); fewer lanes than one call holds are
+    padded (repeating the last lane)."""
     n = len(lanes[0])
     n_samples = shared[1].shape[1]
     size = items_per_call(n_samples=n_samples, max_lane_samples=CALL_LANE_SAMPLES,
@@ -860,7 +886,7 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
         # Through the exported program on disk when the command line keeps them: a new
         # process then skips tracing the lanes (most of a warm diagnosis of 1,000 rows).
         layout = tuple(d.name for d in transforms())
-        key = (name, *key, with_compliance, MAX_ITER, *layout)
+        key = (name, *key, with_compliance, *layout)
         out = map_lanes(lambda *a: _export_cache.call(key, run, shared, *a), *lanes,
                         chunk=size)
     else:
@@ -868,73 +894,45 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     return jax.tree.map(lambda a: a[:n], out)
 
 
-def _lane_problem(spec, with_compliance, shared, muscle, fold, cols, colmask):
-    """One lane's least-squares problem: the model with effects
-    (:func:`pamid._effects._model.with_effects`: the transforms, then the set's effect
-    columns ``cols`` as linear slots, masked by ``colmask``), fitted to ``muscle``'s samples,
-    all of them (``fold`` 0) or all but fold ``fold − 1``. Returns (model, x, y, w,
-    w_test)."""
-    x_all, y_all, w_all, fold_all, feat_all, _ = shared
-    y = y_all[muscle]
+#: The refits' solver: pamid's own Levenberg–Marquardt with masks and projected bounds,
+#: stopping where a Gauss–Newton step would lower the SSE by at most RTOL of itself plus
+#: ATOL_N² per sample.
+REFIT_SOLVER = ProjectedLevenbergMarquardt(floor_per_sample=ATOL_N**2)
+
+
+def lane_data(source, muscle, fold, cols, slotmask):
+    """One refit's data, made inside the compiled call (the ``make`` of the refits'
+    :class:`~pamid._lanes._batch.LaneView`): ``muscle``'s samples, all of them (``fold``
+    0) or all but fold ``fold − 1`` (weight 0), the inputs of
+    :func:`pamid._effects._model.with_effects`: the base model's, then the set's effect
+    columns ``cols`` of the muscle's feature matrix for that fold, zero where ``slotmask``
+    is (the unused slots). Returns (x, y, w)."""
+    x_all, y_all, w_all, fold_all, feat_all = source
     held = (fold_all[muscle] == fold - 1) & (fold > 0)
     w = jnp.where(held, 0.0, w_all[muscle])
-    w_test = jnp.where(held, w_all[muscle], 0.0)
     feats = jnp.take(feat_all[muscle, fold], cols, axis=1)
-    n_tr = len(transforms())
-    # colmask: the transforms' 0/1 flags (the compliance, the sensor offset), then the
-    # linear slots'; masked constants stay at zero.
-    x = (*(xi[muscle] for xi in x_all), feats * colmask[None, n_tr:])
-    return with_effects(spec, with_compliance, cols.shape[0]), x, y, w, w_test
+    return (*(xi[muscle] for xi in x_all), feats * slotmask[None, :]), y_all[muscle], w
 
 
-def _lane(spec, with_compliance, shared, muscle, fold, cols, colmask, free, theta0,
-          eff_lower, eff_upper):
-    """Solve one lane (:func:`_lane_problem`) by the one least-squares entry of a lane
-    (:func:`pamid._solvers.fit_lane`): the model's constants start at ``theta0``,
-    those where ``free`` is 0 held there, the others kept within the model's bounds
-    (``shared``'s last entry). The effects' constants are kept within ``eff_lower`` …
-    ``eff_upper`` (transforms, then slots): ±inf but for a constant declared ``held`` (a
-    slip element's weight); the others are not bounded here: one past its physical bound is
-    reported as what it would have needed. Returns the constants, the SSE, the held-out
-    SSE, the residual of every sample, whether it converged and the mask at the end (0
-    where a constant is held)."""
-    model, x, y, w, w_test = _lane_problem(spec, with_compliance, shared, muscle, fold, cols,
-                                           colmask)
-    model_bounds = shared[5]
-    n_tr = len(transforms())
-    s = cols.shape[0]
-    mask = jnp.concatenate([free, colmask])
-    params0 = jnp.concatenate([theta0, jnp.zeros(n_tr + s)])
-    unbounded = jnp.full(theta0.shape, jnp.inf)
-    lower, upper = (-unbounded, unbounded) if model_bounds is None else model_bounds
-    bounds = (jnp.concatenate([lower, eff_lower]), jnp.concatenate([upper, eff_upper]))
-    sol = fit_lane(model, params0, x, y, w, mask, max_steps=MAX_ITER, rtol=RTOL,
-                   floor_per_sample=ATOL_N**2, bounds=bounds)
-    resid_all = y - model.predict(sol.params, x)
-    sse_test = jnp.sum(w_test * resid_all**2)
-    return sol.params, sol.sse, sse_test, resid_all, _reached(sol, w), sol.free
+def reached(result, decrement, sse, n):
+    """Whether each refit reached its least squares as far as the selection can tell: it
+    converged, or it ran out of steps (:data:`MAX_ITER`) where the Gauss–Newton step
+    (``decrement``) would still lower its SSE by so little that the BIC, n·ln(SSE/n), would
+    move by at most :data:`BIC_SLACK` (a decrement δ moves it by about n·δ/SSE). Such a
+    lane is in a flat valley of constants that trade off — a ``covariate:<col>`` of the
+    contraction beside eq. 2.1's a2·exp(a3·κ) + a6, whose a2 wanders to thousands of N over
+    hundreds of steps while the SSE moves in its fourth digit — and its SSE is that of the
+    optimum for every purpose of the comparison."""
+    flat = (result == MAX_STEPS) & (decrement * np.maximum(n, 1) <= BIC_SLACK * sse)
+    return (result == CONVERGED) | flat
 
 
-def _reached(sol, w):
-    """Whether a lane's solve reached its least squares as far as the selection can tell:
-    it converged, or it ran out of steps (:data:`MAX_ITER`) where the Gauss–Newton step
-    would still lower its SSE by so little that the BIC, n·ln(SSE/n), would move by at
-    most :data:`BIC_SLACK` (a decrement δ moves it by about n·δ/SSE). Such a lane is in a
-    flat valley of constants that trade off — a ``covariate:<col>`` of the contraction
-    beside eq. 2.1's a2·exp(a3·κ) + a6, whose a2 wanders to thousands of N over hundreds of
-    steps while the SSE moves in its fourth digit — and its SSE is that of the optimum for
-    every purpose of the comparison."""
-    g, h = restrict(sol.jac.T @ sol.residual, sol.jac.T @ sol.jac, sol.free)
-    n = jnp.maximum(jnp.sum(w > 0), 1)
-    flat = (sol.result == MAX_STEPS) & (newton_decrement(g, h) * n <= BIC_SLACK * sol.sse)
-    return (sol.result == CONVERGED) | flat
-
-
-def _lane_statistics(spec, with_compliance, shared, muscle, cols, colmask, free, params):
+def _lane_statistics(spec, with_compliance, shared, muscle, cols, slotmask, free, params):
     """(JᵀJ)⁻¹ and the numerical rank of a lane fitted to all its muscle's data, at its
     constants ``params``; the constants held there (``free`` 0: masked, or held on a bound
     at the end) have no variance and no rank."""
-    model, x, _, w, _ = _lane_problem(spec, with_compliance, shared, muscle, 0, cols, colmask)
+    x, _, w = lane_data(shared, muscle, 0, cols, slotmask)
+    model = with_effects(spec, with_compliance, cols.shape[0])
     # pamid's one covariance and rank criterion (``pamid._inference``), held constants out;
     # the Jacobian of the residual data − model
     jac = -model.jacobian(params, x) * jnp.sqrt(w)[:, None]
@@ -949,7 +947,6 @@ def _vmapped(lane):
     return jax.jit(run, static_argnums=(0, 1))
 
 
-_solve_lanes_jit = _vmapped(_lane)
 _lane_statistics_jit = _vmapped(_lane_statistics)
 
 

@@ -141,6 +141,11 @@ class InputTransform(ModelSpec):
         gf = g(f, theta_b, t, x)
         return f + (gf - jax.lax.stop_gradient(gf)) / (1.0 - jax.lax.stop_gradient(dg))
 
+    @property
+    def program_key(self) -> tuple | None:
+        key = self.base.program_key
+        return None if key is None else (*key, type(self).__qualname__, self.implicit)
+
     def start(self, x, y, w):
         """The base model's start; the effect's constants at zero (no effect)."""
         theta0 = self.base.start(x, y, w)
@@ -188,6 +193,11 @@ class LinearTerms(ModelSpec):
         k = self.base.n_params
         return jnp.concatenate([self.base.jacobian(theta[:k], tuple(inputs)), features],
                                axis=1)
+
+    @property
+    def program_key(self) -> tuple | None:
+        key = self.base.program_key
+        return None if key is None else (*key, "LinearTerms", self.n_slots)
 
     def start(self, x, y, w):
         """The base model's start; every gain at zero (no effect)."""

@@ -27,13 +27,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import unscaled_covariance
-from .._lanes._batch import FitData, map_lanes, padded_rows
+from .._lanes import _export_cache
+from .._lanes._batch import FitData, LaneView, map_lanes, padded_rows
+from .._lanes._sharding import lane_devices
 from .._solvers import (  # noqa: F401 - residuals: where the weighted residual is found
     CONVERGED,
     MAX_STEPS,
     NONFINITE,
     SOLVER_CLASSES,
     STALLED,
+    ProjectedLevenbergMarquardt,
     Solution,
     Solver,
     as_solver,
@@ -53,21 +56,32 @@ def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
     return as_solver(solver).run(spec, theta0, x, y, w, max_steps, rtol, atol)
 
 
-@functools.partial(jax.jit, static_argnames=("spec", "max_steps"))
-def _solve_in_bounds(spec, theta0, x, y, w, lower, upper, max_steps):
-    """Every lane fitted within the box [``lower``, ``upper``] from ``theta0`` clipped into
-    it, by pamid's one masked loop with projected bounds
-    (:func:`pamid._solvers.levenberg_marquardt`): a constant on a bound whose gradient
-    points out of the box is held there, one whose gradient points back in is free again,
-    so a converged lane is a constrained optimum (Karush–Kuhn–Tucker)."""
-    from .._solvers import CONVERGED, fit_lane
+@functools.partial(jax.jit, static_argnames=("spec", "solver", "make", "max_steps", "rtol",
+                                             "outputs"))
+def _own_loop(spec, solver, make, max_steps, rtol, outputs, source, theta0, mask, bounds,
+              lanes):
+    """Every lane by pamid's own loop (``solver``, a
+    :class:`~pamid._solvers.ProjectedLevenbergMarquardt`): from ``theta0`` (clipped into
+    ``bounds``, per lane, where given), the constants where ``mask`` is 0 held, a constant
+    on a bound whose gradient points out of the box held there (a converged lane is a
+    constrained optimum: Karush–Kuhn–Tucker). A lane's data are ``lanes``' (x, y, w), or
+    ``make(source, *lanes)`` (a :class:`~pamid._lanes._batch.LaneView`)."""
 
-    def one(theta0, x, y, w):
-        sol = fit_lane(spec, jnp.clip(theta0, lower, upper), x, y, w, max_steps=max_steps,
-                       rtol=1e-12, floor_per_sample=1e-20, bounds=(lower, upper))
-        return sol.params, sol.result == CONVERGED, sol.steps
+    def one(theta0, mask, bounds, lane):
+        x, y, w = lane if make is None else make(source, *lane)
+        if bounds is not None:
+            theta0 = jnp.clip(theta0, *bounds)
+        sol = solver.lane(spec, theta0, x, y, w, mask, bounds, max_steps=max_steps,
+                          rtol=rtol)
+        out = {"params": sol.params, "result": sol.result, "steps": sol.steps,
+               "free": sol.free, "sse": sol.sse, "decrement": sol.decrement}
+        if "jacobian" in outputs:
+            out["residual"], out["jac"] = sol.residual, sol.jac
+        if "prediction" in outputs:
+            out["prediction"] = spec.predict(sol.params, x)
+        return out
 
-    return jax.vmap(one)(theta0, x, y, w)
+    return jax.vmap(one)(theta0, mask, bounds, lanes)
 
 
 @functools.partial(jax.jit, static_argnames=("spec",))
@@ -93,16 +107,19 @@ def _statistics(spec, theta, x, y, w):
 
 def least_squares(
     model: ModelSpec,
-    data: FitData,
+    data: FitData | LaneView,
     *,
     solver: Solver | str = "gauss-newton",
     theta0=None,
     bounds=None,
     weights=None,
+    mask=None,
     max_steps: int = 100,
     rtol: float = 1e-10,
     atol: float = 1e-10,
     with_statistics: bool = False,
+    outputs: tuple[str, ...] = (),
+    chunk: int | None = None,
 ) -> Solution:
     """pamid's one batched least-squares entry: ``model`` fitted to every lane of ``data``
     (a muscle, a fold, a start …) in one compiled call, by ``solver`` (a value of
@@ -111,17 +128,29 @@ def least_squares(
     Args:
         model: the model, a :class:`~pamid._fit._spec.ModelSpec` (a ``ForceModel`` class's
             view, or a model made of another: pooled, smooth in l0, with effects …).
-        data: the packed batch, one lane per row of its arrays.
+        data: the packed batch, one lane per row of its arrays; or a
+            :class:`~pamid._lanes._batch.LaneView`, whose lanes are made inside the
+            compiled call from the arrays they share (the diagnosis's candidate sets ×
+            folds of each muscle), run in calls of exactly ``chunk`` lanes.
         solver: the solver; where the model registers written-out kernels of its kind
-            (Sárosi's Gauss–Newton), those run, from their own start.
+            (Sárosi's Gauss–Newton), those run, from their own start. With ``bounds``,
+            ``mask`` or a lane view, pamid's own loop runs:
+            :class:`~pamid._solvers.ProjectedLevenbergMarquardt` as given, or, for
+            another solver, with a stopping test of 1e-12 of the SSE (plus 1e-20 per
+            sample) and at least 200 steps.
         theta0: starts (lanes, p); default the model's start.
-        bounds: ``(lower, upper)`` of the constants: every lane is fitted within them by
-            pamid's one loop with projected bounds (a constant on a bound whose gradient
-            points out of the box held there), from ``theta0`` clipped into them.
+        bounds: ``(lower, upper)`` of the constants, (p,) or per lane (lanes, p): every
+            lane is fitted within them by pamid's own loop (a constant on a bound whose
+            gradient points out of the box held there), from ``theta0`` clipped into them.
         weights: per-sample weights (lanes, rows) that multiply the data's own (padding
             stays 0): a fold of a cross-validation is this call with 0 on its held-out rows.
-        max_steps, rtol, atol: the step budget and stopping tolerances (with ``bounds`` the
-            budget is at least 200 steps).
+        mask: (lanes, p), 0 where a constant is held at its start (pamid's own loop).
+        max_steps, rtol, atol: the step budget and stopping tolerances.
+        outputs: more of each lane's solution from pamid's own loop: ``"jacobian"`` (the
+            weighted residual and its Jacobian), ``"prediction"`` (the model on every
+            sample, weight 0 too).
+        chunk: lanes per compiled call (default: :func:`~pamid._lanes._batch.map_lanes`'
+            own).
         with_statistics: (not with ``bounds``) also the statistics at the constants
             (:func:`statistics` with the lag-1 sums) where the model's written-out
             Gauss–Newton solves, from the same compiled call (one program and one pass of
@@ -135,25 +164,27 @@ def least_squares(
         ``params``, ``result`` (``converged``; ``nonfinite`` where a constant is not
         finite; ``max_steps`` where the budget ran out; ``stalled`` where the solver
         stopped short of its tolerance before that), ``steps``, and with
-        ``with_statistics`` the kernel's ``statistics`` and their ``sse``.
+        ``with_statistics`` the kernel's ``statistics`` and their ``sse``; from pamid's own
+        loop also ``sse``, ``free`` (0 where a constant was held), ``decrement`` and the
+        ``outputs`` asked for.
     """
-    if with_statistics and bounds is not None:
-        raise ValueError("with_statistics is for fits without bounds")
-    if weights is not None:
-        weights = np.asarray(weights, dtype=np.float64)
-        if weights.shape != tuple(np.shape(data.w)):
-            raise ValueError(f"weights of shape {weights.shape}; the data's lanes and rows "
-                             f"are {tuple(np.shape(data.w))}")
-        if not np.all(np.isfinite(weights) & (weights >= 0)):
-            raise ValueError("weights must be finite and ≥ 0")
-        data = data._replace(w=jax.device_put(np.asarray(data.w) * weights))
+    own = bounds is not None or mask is not None or isinstance(data, LaneView)
+    if own or isinstance(as_solver(solver), ProjectedLevenbergMarquardt):
+        if with_statistics:
+            raise ValueError("with_statistics is for fits without bounds or held constants")
+        return _least_squares_own(model, data, as_solver(solver), theta0, bounds, weights,
+                                  mask, max_steps, rtol, tuple(outputs), chunk)
+    if outputs:
+        raise ValueError("outputs are given by pamid's own loop (bounds, a mask, or "
+                         "solver=ProjectedLevenbergMarquardt())")
+    data = _weighted(data, weights)
     solver = as_solver(solver)
     solver.check(model)
     kernel = solver.kernel(model)
     fast = model.kernels
     budget = max_steps
     stats = None
-    if kernel is not None and bounds is None:
+    if kernel is not None:
         # The model's registered written-out solver, with its own start.
         start = () if theta0 is None else (_host(theta0),)
         if with_statistics:
@@ -175,27 +206,88 @@ def least_squares(
         return _solution(theta, ok, steps, budget, stats)
     if theta0 is None:
         theta0 = _start_values(model, data)
-    theta0 = _host(theta0)
-    if bounds is not None:
-        lower, upper = (jnp.broadcast_to(jnp.asarray(b, float), theta0.shape[-1:]) for b in bounds)
-        if bool(jnp.any(lower > upper)):
-            raise ValueError("every lower bound must be at most its upper bound")
-        budget = max(max_steps, 200)
-        theta, ok, steps = map_lanes(
-            lambda t0, x, y, w: _solve_in_bounds(
-                model, t0, x, y, w, lower, upper, max_steps=budget
-            ),
-            theta0, data.x, data.y, data.w,
-            cache_key=_key("solve_in_bounds", model, budget,
-                           tuple(np.asarray(lower).tolist()), tuple(np.asarray(upper).tolist())),
-        )
-    else:
-        theta, ok, steps = map_lanes(
-            lambda t0, x, y, w: _solve_batch(model, solver, t0, x, y, w, max_steps, rtol, atol),
-            theta0, data.x, data.y, data.w,
-            cache_key=_key("solve", model, solver.name, max_steps, rtol, atol),
-        )
+    theta, ok, steps = map_lanes(
+        lambda t0, x, y, w: _solve_batch(model, solver, t0, x, y, w, max_steps, rtol, atol),
+        _host(theta0), data.x, data.y, data.w,
+        cache_key=_key("solve", model, solver.name, max_steps, rtol, atol),
+    )
     return _solution(theta, ok, steps, budget, stats)
+
+
+def _weighted(data, weights):
+    """``data`` with its weights multiplied by ``weights`` (lanes, rows)."""
+    if weights is None:
+        return data
+    if isinstance(data, LaneView):
+        raise ValueError("a lane view makes its own weights: give weights with FitData")
+    weights = np.asarray(weights, dtype=np.float64)
+    if weights.shape != tuple(np.shape(data.w)):
+        raise ValueError(f"weights of shape {weights.shape}; the data's lanes and rows "
+                         f"are {tuple(np.shape(data.w))}")
+    if not np.all(np.isfinite(weights) & (weights >= 0)):
+        raise ValueError("weights must be finite and ≥ 0")
+    return data._replace(w=jax.device_put(np.asarray(data.w) * weights))
+
+
+def _least_squares_own(model, data, solver, theta0, bounds, weights, mask, max_steps, rtol,
+                       outputs, chunk) -> Solution:
+    """:func:`least_squares` by pamid's own loop (its docstring): masks, bounds per lane,
+    lane views, and more of each lane's solution."""
+    unknown = set(outputs) - {"jacobian", "prediction"}
+    if unknown:
+        raise ValueError(f"unknown outputs {sorted(unknown)}: ask for 'jacobian', "
+                         "'prediction'")
+    data = _weighted(data, weights)
+    if not isinstance(solver, ProjectedLevenbergMarquardt):
+        # A fit within bounds, whatever the solver: the own loop to a tight tolerance.
+        solver = ProjectedLevenbergMarquardt(floor_per_sample=1e-20)
+        max_steps, rtol = max(max_steps, 200), 1e-12
+    view = isinstance(data, LaneView)
+    n = data.n_lanes if view else int(np.shape(data.y)[0])
+    if theta0 is None:
+        if view:
+            raise ValueError("a lane view needs its starts, theta0")
+        theta0 = _start_values(model, data)
+    theta0 = np.broadcast_to(_host(theta0), (n, model.n_params))
+    per_lane = lambda a: None if a is None else np.broadcast_to(  # noqa: E731
+        np.asarray(a, dtype=np.float64), (n, model.n_params))
+    mask = per_lane(mask)
+    if bounds is not None:
+        bounds = tuple(per_lane(b) for b in bounds)
+        if np.any(bounds[0] > bounds[1]):
+            raise ValueError("every lower bound must be at most its upper bound")
+    outputs = tuple(sorted(outputs))
+    run = functools.partial(_own_loop, model, solver, data.make if view else None,
+                            max_steps, rtol, outputs)
+    key = _key("own_loop", model, solver, max_steps, rtol, outputs,
+               None if not view else f"{data.make.__module__}.{data.make.__qualname__}")
+    if not view:
+        out = map_lanes(lambda t0, m, b, *lane: run(None, t0, m, b, lane), theta0, mask,
+                        bounds, data.x, data.y, data.w, chunk=chunk, cache_key=key)
+    else:
+        # Calls of exactly ``chunk`` lanes (the last repeated): one compiled shape per
+        # sample count, whatever the number of lanes. The shared arrays are an argument of
+        # the program kept on disk, not a constant of it.
+        size = chunk or n
+        lanes = (theta0, mask, bounds, tuple(data.index))
+        if n < size:
+            idx = np.minimum(np.arange(size), n - 1)
+            lanes = jax.tree.map(lambda a: np.asarray(a)[idx], lanes)
+
+        def call(t0, m, b, index):
+            if key is not None and len(lane_devices()) == 1:
+                return _export_cache.call(key, run, data.source, t0, m, b, index)
+            return run(data.source, t0, m, b, index)
+
+        out = jax.tree.map(lambda a: a[:n], map_lanes(call, *lanes, chunk=size))
+    result = np.asarray(out["result"])
+    theta = np.asarray(out["params"])
+    result = np.where(np.all(np.isfinite(theta), axis=-1), result, NONFINITE)
+    return Solution(params=theta, residual=out.get("residual"), jac=out.get("jac"),
+                    sse=np.asarray(out["sse"]), result=result,
+                    steps=np.asarray(out["steps"]), free=np.asarray(out["free"]),
+                    prediction=out.get("prediction"),
+                    decrement=np.asarray(out["decrement"]))
 
 
 def solve(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", theta0=None,
@@ -653,7 +745,7 @@ def fit_lanes(spec: ModelSpec, data: FitData, *, solver: str = "gauss-newton", b
        ``spec.bounds``) start again from the top :data:`RETRY_STARTS` candidates (for
        Sárosi: trial values of a3 within its bounds).
     3. Lanes still outside the bounds are refitted within them from the clipped point by the
-       one loop with projected bounds (:func:`_solve_in_bounds`); constants on a bound are
+       one loop with projected bounds (:func:`_own_loop`); constants on a bound are
        marked.
        A lane whose fit without bounds found no determined optimum is marked as ran away.
 

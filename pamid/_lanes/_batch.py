@@ -45,6 +45,31 @@ class FitData(NamedTuple):
         return self.y.shape[0]
 
 
+class LaneView(NamedTuple):
+    """A batch whose lanes are made inside the compiled call from arrays they share: lane
+    i's ``(x, y, w)`` is ``make(source, *(a[i] for a in index))``. What a batch of many
+    lanes over the same samples (the diagnosis's candidate sets × folds of each muscle)
+    passes to the one least-squares entry instead of a :class:`FitData` with a copy of the
+    samples per lane: the memory is the source plus a call's temporaries.
+
+    Attributes:
+        source: the shared arrays (a pytree), on the device once.
+        index: per-lane arrays (a tuple, leading lane axis): what ``make`` reads a lane by.
+        make: a module-level function (its name keys the compiled programs kept on disk).
+        n_samples: the samples of a lane (the rows of ``source``'s arrays), for the call's
+            size (:func:`items_per_call`).
+    """
+
+    source: object
+    index: tuple
+    make: object
+    n_samples: int
+
+    @property
+    def n_lanes(self) -> int:
+        return int(np.shape(self.index[0])[0])
+
+
 def pack(groups, curves=None) -> FitData:
     """Pack a list of muscles, each ``(x_tuple, y)`` of 1-D arrays, into a padded batch.
 

@@ -10,8 +10,9 @@ for interval ends, to :func:`pamid._fit._intervals.profile`.
 - ``_sarosi.py``: Sárosi eq. 2.1's written-out Gauss–Newton kernel, its start and statistics
   (its own loop: benchmarks/README.md, ``fit_batch.py``);
 - ``_levenberg_marquardt.py``: :class:`LevenbergMarquardt` (optimistix's loop), and pamid's
-  masked loop with projected bounds, :func:`levenberg_marquardt` (fits within bounds,
-  diagnosis refits, decay trajectory, Coulomb and joint fits);
+  masked loop with projected bounds, :func:`levenberg_marquardt`, as the solver value
+  :class:`ProjectedLevenbergMarquardt` (fits within bounds, diagnosis refits, decay
+  trajectory and Coulomb fits, through the one entry; the joint fits, lane by lane);
 - ``_variable_projection.py``: :class:`VariableProjection` (its bracket refinement);
 - ``_jaxopt.py``: :class:`JaxoptLevenbergMarquardt`, for comparison (jaxopt's loop);
 - ``_profile.py``: :class:`ProfileNewton`, the ends of profile intervals (a root finder,
@@ -37,6 +38,7 @@ from ._gauss_newton import GaussNewton
 from ._jaxopt import JaxoptLevenbergMarquardt
 from ._levenberg_marquardt import (
     LevenbergMarquardt,
+    ProjectedLevenbergMarquardt,
     fit_lane,
     levenberg_marquardt,
     newton_decrement,
@@ -61,7 +63,7 @@ from ._variable_projection import (
 #: The solvers by name (``--solver``, ``solver="…"``): one line per solver class.
 SOLVER_CLASSES: dict[str, type[Solver]] = {
     cls.name: cls for cls in (GaussNewton, LevenbergMarquardt, VariableProjection,
-                              JaxoptLevenbergMarquardt)
+                              JaxoptLevenbergMarquardt, ProjectedLevenbergMarquardt)
 }
 
 
@@ -78,6 +80,7 @@ def as_solver(solver) -> Solver:
 __all__ = [
     "CONVERGED", "MAX_STEPS", "NONFINITE", "RESULT_NAMES", "SOLVER_CLASSES", "STALLED",
     "GaussNewton", "JaxoptLevenbergMarquardt", "LevenbergMarquardt", "ProfileNewton",
+    "ProjectedLevenbergMarquardt",
     "Solution", "Solver", "VariableProjection", "as_solver", "fit_lane",
     "generic_derivatives", "levenberg_marquardt", "newton_decrement",
     "optimistix_lanes", "residuals", "residuals_and_jacobian", "restrict",

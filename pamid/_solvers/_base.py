@@ -55,6 +55,10 @@ class Solution(NamedTuple):
             was free.
         statistics: the statistics at ``params`` where the batched entry computed them
             (``pamid._fit._least_squares.statistics``' tuple), else None.
+        prediction: the model at ``params`` on every sample, also those of weight 0 (a
+            fold's held-out rows), where the batched entry was asked for it; else None.
+        decrement: the Newton decrement gᵀ(JᵀJ)⁻¹g at ``params`` (the decrease of the SSE
+            a Gauss–Newton step would still give) where the solver gives it; else None.
     """
 
     params: jax.Array
@@ -65,6 +69,8 @@ class Solution(NamedTuple):
     steps: jax.Array
     free: jax.Array | None
     statistics: tuple | None = None
+    prediction: jax.Array | None = None
+    decrement: jax.Array | None = None
 
     @property
     def converged(self):

@@ -1,19 +1,18 @@
 """Levenberg–Marquardt: pamid's one masked loop with projected bounds, for one lane (batched
-by ``jax.vmap``), and the solver value :class:`LevenbergMarquardt` (``--solver
-levenberg-marquardt``), which is optimistix's for unbounded fits.
+by ``jax.vmap``), as the solver value :class:`ProjectedLevenbergMarquardt`, and
+:class:`LevenbergMarquardt` (``--solver levenberg-marquardt``), optimistix's, for unbounded
+fits.
 
-Every least-squares problem that pamid solves with its own loop goes through
-:func:`levenberg_marquardt`, and every one of them is a model value fitted to a lane's data
-through :func:`fit_lane` (a :class:`~pamid._fit._spec.ModelSpec`, whose ``predict`` and
-``value_and_jacobian`` make the weighted residual): the diagnosis refits (a model with
-candidate effects, :func:`~pamid._effects._model.with_effects`, some constants held by a
-mask so that every effect set of a batch has the same shape), the free-decay trajectory
-fits (linear, :mod:`pamid._decays._analysis`; with friction, :mod:`pamid._decays._coulomb`)
-and the joint's decay fits (:mod:`pamid._decays._joint_fit`), in constants divided by a
-scale (:class:`~pamid._fit._spec.Scaled`), and the static fits within bounds
-(``pamid._fit._least_squares._solve_in_bounds``). Static force laws without bounds are
-solved by the solver value the user chose (:mod:`pamid._solvers`): optimistix's, jaxopt's,
-or a model's registered written-out kernels (Sárosi's Gauss–Newton).
+The one least-squares entry (:func:`pamid._fit._least_squares.least_squares`) runs
+:class:`ProjectedLevenbergMarquardt` for every fit with bounds or held constants: the static
+fits within bounds, the diagnosis refits (a model with candidate effects,
+:func:`~pamid._effects._model.with_effects`, some constants held by a mask so that every
+effect set of a batch has the same shape), the free-decay trajectory fits (linear,
+:mod:`pamid._decays._analysis`; with friction, :mod:`pamid._decays._coulomb`) and the joint's
+decay fits (:mod:`pamid._decays._joint_fit`), the last three in constants divided by a scale
+(:class:`~pamid._fit._spec.Scaled`). Each is a model value (a
+:class:`~pamid._fit._spec.ModelSpec`, whose ``predict`` and ``value_and_jacobian`` make the
+weighted residual) fitted to a lane's data by :func:`fit_lane`.
 
 The method: Levenberg–Marquardt with Marquardt's scaling (the damping proportional to the
 diagonal of JᵀJ) and Nielsen's damping update (H. B. Nielsen, "Damping parameter in
@@ -147,7 +146,7 @@ def levenberg_marquardt(linearise: Callable, p0, mask, *, max_steps: int, rtol: 
     result = jnp.where(
         ~finite, NONFINITE,
         jnp.where(small(g, h, sse), CONVERGED, jnp.where(lam > MAX_DAMPING, STALLED, MAX_STEPS)))
-    return Solution(p, r, jac, sse, result, k, free)
+    return Solution(p, r, jac, sse, result, k, free, decrement=newton_decrement(g, h))
 
 
 
@@ -159,11 +158,9 @@ def fit_lane(model, theta0, x, y, w, mask=None, *, max_steps: int, rtol: float,
     within ``bounds`` where given, by :func:`levenberg_marquardt` on the weighted residual
     w^½·(model − y). It stops where a Gauss–Newton step would lower the SSE by at most
     ``rtol`` of itself plus ``floor_per_sample`` (an absolute tolerance squared) per sample
-    of weight > 0. The fits within bounds,
-    the diagnosis refits (a model with candidate effects,
-    :func:`pamid._effects._model.with_effects`) and the free-decay fits (trajectory,
-    friction, joint: :class:`pamid._fit._spec.Scaled` models) call it. Rows of weight 0
-    never count, even where the model is not finite there (padding)."""
+    of weight > 0. One lane of :class:`ProjectedLevenbergMarquardt`, which the one entry
+    batches. Rows of weight 0 never count, even where the model is not finite there
+    (padding)."""
     sw = jnp.sqrt(w)
     on = w > 0
 
@@ -178,9 +175,40 @@ def fit_lane(model, theta0, x, y, w, mask=None, *, max_steps: int, rtol: float,
                                damping0=damping0)
 
 
+class ProjectedLevenbergMarquardt(Solver):
+    """pamid's own loop, :func:`levenberg_marquardt`, as a solver value: the one that holds
+    constants (a mask) and keeps them within box bounds, which the one entry
+    (:func:`pamid._fit._least_squares.least_squares`) runs for every fit with bounds or
+    held constants, and for any fit it is given to (``--solver
+    projected-levenberg-marquardt``).
+
+    Attributes:
+        floor_per_sample: the stopping test's absolute term, per sample of weight > 0
+            (an absolute tolerance squared: for data the model fits exactly).
+        damping0: the first step's damping, relative to the diagonal of JᵀJ.
+    """
+
+    name: ClassVar[str] = "projected-levenberg-marquardt"
+    restarts: ClassVar[bool] = True
+    floor_per_sample: float = 0.0
+    damping0: float = 1e-3
+
+    def lane(self, spec, theta0, x, y, w, mask=None, bounds=None, *, max_steps: int,
+             rtol: float) -> Solution:
+        """One lane (:func:`fit_lane`), batched by the entry with ``jax.vmap``."""
+        return fit_lane(spec, theta0, x, y, w, mask, max_steps=max_steps, rtol=rtol,
+                        floor_per_sample=self.floor_per_sample, bounds=bounds,
+                        damping0=self.damping0)
+
+    def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
+        sol = jax.vmap(lambda t0, x, y, w: self.lane(spec, t0, x, y, w, max_steps=max_steps,
+                                                     rtol=rtol))(theta0, x, y, w)
+        return sol.params, sol.result == CONVERGED, sol.steps
+
+
 class LevenbergMarquardt(Solver):
     """optimistix's ``LevenbergMarquardt(rtol, atol)`` (a fit within bounds runs
-    :func:`levenberg_marquardt` above, whatever the solver)."""
+    :class:`ProjectedLevenbergMarquardt` above, whatever the solver)."""
 
     name: ClassVar[str] = "levenberg-marquardt"
     restarts: ClassVar[bool] = True
