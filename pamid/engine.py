@@ -22,9 +22,11 @@ JAX arrays), and check less than the workflows do. ::
   ``written_out=False`` (``dataclasses.replace``) is fitted by the generic solvers, without
   the written-out kernels registered for its model class.
 * Least squares: :func:`least_squares`, the one entry (one compiled call for the batch,
-  from the model's start or ``theta0``, within ``bounds``, with ``weights``; the solvers
-  ``"gauss-newton"``, ``"levenberg-marquardt"``, ``"variable-projection"``,
-  ``"jaxopt-levenberg-marquardt"`` or a solver value), which returns a :class:`Solution`
+  from the model's start or ``theta0``, within ``bounds``, with ``weights``, constants held
+  by a ``mask``; the solvers ``"gauss-newton"``, ``"levenberg-marquardt"``,
+  ``"variable-projection"``, ``"jaxopt-levenberg-marquardt"``,
+  ``"projected-levenberg-marquardt"`` (pamid's own loop, which bounds and masks run) or a
+  solver value), which returns a :class:`Solution`
   (constants, a result code per lane of :data:`RESULT_NAMES`, steps; the statistics where
   asked); :func:`solve`, the same as the tuple (theta, converged, steps); :func:`statistics`;
   :func:`find_curves` (the curve structure the bootstrap and the cluster intervals group
