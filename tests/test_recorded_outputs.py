@@ -1,16 +1,17 @@
 """The commands' JSON on the bundled file, on a virtual decay file and on the measured files
 of ``../shared/data`` (the Martens map; one AARL muscle, every 8th row), against outputs
-recorded before a refactor (issue 33: "fit, compare, diagnose, damping … give the same JSON
-as before to 1e-8 relative", "on the bundled file, both shared measured files and the
-virtual benches"). The measured files' cases are skipped where the data are absent; only
-pamid's outputs are recorded, never the data. A change that moves a
-number on purpose records the outputs again and says why in its commit:
+recorded before a refactor (issue 33: "fit, compare, diagnose, damping, check-decays,
+--method mcmc give the same JSON as before to 1e-8 relative", "on the bundled file, both
+shared measured files and the virtual benches"). The measured files' cases are skipped
+where the data are absent; only pamid's outputs are recorded, never the data. A change that
+moves a number on purpose records the outputs again and says why in its commit:
 
     PAMID_RECORD_OUTPUTS=1 .venv/bin/python -m pytest -q tests/test_recorded_outputs.py
 
 Every key, string, flag and null must match; numbers to 1e-8 relative (1e-10 absolute near
 zero; a constant's interval ends to 1e-8 of the constant's size, :func:`_scale`). Only what
-differs from run to run is left out: the wall time and the input's path ("source", "file").
+differs from run to run is left out: the wall time and the inputs' paths ("source", "file",
+"model_json").
 
 The measured files' diagnoses are not recorded: some of their refits end on the step budget
 in a flat valley of constants that trade off (:func:`pamid._diagnose._static.reached`), and
@@ -35,10 +36,12 @@ DATA = ROOT.parent / "shared" / "data"
 MARTENS = DATA / "martens_dmsp10_250.csv"
 AARL = DATA / "aarl_festo10mm_isometric.csv"
 RECORDED = Path(__file__).resolve().parent / "recorded"
-VOLATILE = {"seconds", "source", "file"}
+VOLATILE = {"seconds", "source", "file", "model_json"}
 RTOL, ATOL = 1e-8, 1e-10
 
 #: "{decay}": a virtual decay file of three trials with Coulomb friction (:func:`decay_file`);
+#: "{damping}": what ``pamid damping --json`` says of it (:func:`damping_json`), the model
+#: ``check-decays`` checks;
 #: "{aarl}": one AARL muscle, every 8th row (:func:`aarl_muscle`).
 CASES = {
     "fit_sarosi": ["fit", str(BUNDLED), "--json"],
@@ -49,6 +52,10 @@ CASES = {
     "diagnose_bundled": ["diagnose", str(BUNDLED), "--json"],
     "damping_decays": ["damping", "{decay}", "--inertia", "0.46", "--json"],
     "diagnose_decays": ["diagnose", "{decay}", "--inertia", "0.46", "--json"],
+    "check_decays": ["check-decays", "{decay}", "--model-json", "{damping}", "--inertia",
+                     "0.46", "--json"],
+    "fit_mcmc": ["fit", str(BUNDLED), "--json", "--method", "mcmc", "--seed", "3",
+                 "--max-steps", "2000"],
     "fit_martens": ["fit", str(MARTENS), "--json"],
     "compare_martens": ["compare", str(MARTENS), "--json"],
     "fit_aarl_muscle": ["fit", "{aarl}", "--json"],
@@ -74,6 +81,20 @@ def decay_file(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("decays") / "decay.csv"
     pamid.simulate_decays(jax.random.key(3), osc, protocol, coulomb_Nm=0.02).to_csv(
         path, index=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def damping_json(decay_file, tmp_path_factory) -> Path:
+    """``pamid damping --json`` of :func:`decay_file`, as a file."""
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["damping", str(decay_file), "--inertia", "0.46", "--json"]) == 0
+    path = tmp_path_factory.mktemp("damping") / "damping.json"
+    path.write_text(out.getvalue())
     return path
 
 
@@ -125,11 +146,11 @@ def _differences(got, want, where="", scale=0.0) -> list[str]:
 
 
 @pytest.mark.parametrize("name", list(CASES))
-def test_json_as_recorded(name, capsys, decay_file, aarl_muscle):
+def test_json_as_recorded(name, capsys, decay_file, damping_json, aarl_muscle):
     if name in MEASURED and not MEASURED[name].exists():
         pytest.skip("measured data not present")
     code = main([a.replace("{decay}", str(decay_file)).replace("{aarl}", str(aarl_muscle))
-                 for a in CASES[name]])
+                 .replace("{damping}", str(damping_json)) for a in CASES[name]])
     payload = json.loads(capsys.readouterr().out)
     path = RECORDED / f"{name}.json"
     if os.environ.get("PAMID_RECORD_OUTPUTS") == "1":
