@@ -55,6 +55,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._data._decay_file import DecayData
 from .._fit._spec import ModelSpec
 from .._lanes._batch import FitData, pack
 from .._sampling._mcmc import McmcResult, fit_mcmc
@@ -214,7 +215,7 @@ class DecayWindows:
 
 def _as_trials(data):
     """(trial ids, list of (time_s, angle_rad)) from DecayData or a list of pairs."""
-    if hasattr(data, "trials") and hasattr(data, "arrays"):
+    if isinstance(data, DecayData):
         return tuple(data.trials), [data.arrays(tr) for tr in data.trials]
     pairs = [(np.asarray(t, float), np.asarray(y, float)) for t, y in data]
     return tuple(str(i + 1) for i in range(len(pairs))), pairs
