@@ -75,7 +75,7 @@ MAX_ITER = 60
 RTOL = 1e-11
 ATOL_N = 1e-9
 #: A lane out of steps whose remaining Gauss–Newton decrease would move its BIC by at most
-#: this much has reached its least squares for the selection (:func:`_reached`); a BIC
+#: this much has reached its least squares for the selection (:func:`reached`); a BIC
 #: difference below 2 is "not worth more than a bare mention" (Kass and Raftery 1995), and
 #: the selection asks for 10.
 BIC_SLACK = 0.5
@@ -831,12 +831,13 @@ def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
     return blocks % n_folds
 
 
-#: Bytes of temporaries per sample of one lane in the compiled lane function: XLA's memory
-#: analysis of ``_solve_lanes_jit`` on the CPU (8 lanes of 10,000 samples) gave 400–590 B for
-#: Sárosi and 220–500 B for Cullinan with 1–8 effect slots, with and without the compliance
-#: (tests/test_cli_failures.py holds it). With at most ``CALL_LANE_SAMPLES`` lane-samples a
-#: call, a call's temporaries stay below 64 MiB; two CPU threads run calls side by side
-#: (:func:`pamid._lanes._batch.map_lanes`).
+#: Bytes of temporaries per sample of one lane in the compiled refits: XLA's memory analysis
+#: of the one entry's program over a lane view (``pamid._fit._least_squares._own_loop``) on
+#: the CPU, 8 lanes of 2,000 and of 20,000 samples, gave 200–630 B for Sárosi with 1 or 8
+#: effect slots, with and without the compliance (2026-11-29; 220–500 B for Cullinan in the
+#: lane function before it, 2026-11-25); tests/test_cli_failures.py holds it. With at most
+#: ``CALL_LANE_SAMPLES`` lane-samples a call, a call's temporaries stay below 64 MiB; two CPU
+#: threads run calls side by side (:func:`pamid._lanes._batch.map_lanes`).
 LANE_BYTES_PER_SAMPLE = 1024
 #: Lanes of every compiled call when the samples are few (:func:`_run_lanes`)...
 CALL_LANES = 64
