@@ -500,8 +500,14 @@ def _fit_panel(fig, ax, axr, r: _Rows, rows: np.ndarray, moving: int, theta):
     handles += _direction_handles(direction, _KINDS[moving]["directions"])
     handles.append(Line2D([], [], color="0.6", lw=1.8, path_effects=_HALO,
                           label=f"model: {spec.source}"))
-    ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-              borderaxespad=0.0, title=held_label if listed else None, title_fontsize=8)
+    if listed:  # the levels' names: beside the panel
+        ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                  borderaxespad=0.0, title=held_label, title_fontsize=8)
+    else:
+        # Two or three entries, the levels in the colour bar: inside the panel where it
+        # hides least. Beside it, the legend's width was kept free down the whole column,
+        # a wide empty band between the panels and the colour bar.
+        ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.85)
     if not listed:
         cbar = fig.colorbar(ScalarMappable(norm, _CMAP), ax=[ax, axr], location="right",
                             aspect=35, pad=0.02)
