@@ -353,7 +353,7 @@ def test_lane_temporaries_grow_linearly_with_the_rows(tmp_path):
         bounds = (np.full((lanes, p), -np.inf), np.full((lanes, p), np.inf))
         compiled = _own_loop.lower(
             with_effects(problem.spec, True, 4), _static.REFIT_SOLVER, _static.lane_data,
-            _static.MAX_ITER, _static.RTOL, ("prediction",), problem._shared_arrays(),
+            _static.MAX_ITER, ("prediction",), problem._shared_arrays(),
             theta0, np.ones((lanes, p)), bounds, index).compile()
         temps[rows] = compiled.memory_analysis().temp_size_in_bytes
         assert temps[rows] / (lanes * rows) <= _static.LANE_BYTES_PER_SAMPLE

@@ -22,6 +22,7 @@ SOLVERS = (
     "levenberg-marquardt",
     "variable-projection",
     "jaxopt-levenberg-marquardt",
+    "projected-levenberg-marquardt",
 )
 N_PARAMS = 6
 
@@ -206,12 +207,18 @@ def test_batched_solve_is_exact_from_the_same_start(small_bench, solver):
 )
 def test_solver_reaches_the_scipy_optimum(small_bench, reference, solver):
     """Checked at 1e-7 relative, tighter than the 1e-6 asked for: every solver reaches
-    ~1.5e-8 (a1, the least well determined relative to its size)."""
+    ~1.5e-8 (a1, the least well determined relative to its size) but pamid's own loop,
+    whose test stops on the SSE (a Gauss–Newton step would lower it by at most 1e-12 of
+    itself): from Sárosi's variable-projection start it stops at once, a1 2.5e-7 from
+    SciPy's, 1e-3 of its standard error."""
     result = pamid.fit_least_squares(small_bench.data, solver=solver)
     assert np.all(result.converged)
+    own = solver == "projected-levenberg-marquardt"
     for i, (theta_ref, sse_ref) in enumerate(reference):
         assert result.sse[i] == pytest.approx(sse_ref, rel=1e-10)
-        assert_rel(result.theta[i], theta_ref, 1e-7, f"{solver}, muscle {i}")
+        assert_rel(result.theta[i], theta_ref, 1e-6 if own else 1e-7, f"{solver}, muscle {i}")
+        if own:
+            assert np.all(np.abs(result.theta[i] - theta_ref) < 1e-3 * result.se[i])
 
 
 def test_variable_projection_is_at_the_optimum_statistically(small_bench, reference):

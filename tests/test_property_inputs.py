@@ -314,7 +314,11 @@ def test_the_bench_tables_are_varied(workdir):
     seen = collections.Counter()
     texts = set()
 
-    @settings(SETTINGS, max_examples=100)  # no JAX here: 1 s
+    # 300 tables (no JAX here: 3 s). Hypothesis' draws change with the test's source and
+    # follow one another (mutations of earlier tables): over twelve seeds, 100 tables held
+    # 24–44 % valid ones and 6–10 kinds of defect (a full run drew 15 % valid, 2026-11-29),
+    # 300 held 24–38 % and 8–10 kinds, every share below within its bound.
+    @settings(SETTINGS, max_examples=300)
     @given(data=bench_tables())
     def draw(data):
         path = write(workdir, data)

@@ -33,8 +33,11 @@ class Dogleg(Solver):
 
 
 def test_names_and_objects_are_one_solver():
+    from pamid._commands.fit import SOLVER_NAMES
+
     for name, cls in SOLVER_CLASSES.items():
         assert as_solver(name) == cls() and as_solver(cls()) == cls() and cls.name == name
+    assert SOLVER_NAMES == tuple(SOLVER_CLASSES)  # every solver is a choice of --solver
     assert hash(GaussNewton()) == hash(as_solver("gauss-newton"))  # a static jit argument
     with pytest.raises(ValueError, match="unknown solver 'newton'.*gauss-newton"):
         as_solver("newton")

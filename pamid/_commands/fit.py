@@ -12,6 +12,9 @@ from pathlib import Path
 
 from ._common import stage
 
+#: ``--solver``'s choices: the names of :data:`pamid._solvers.SOLVER_CLASSES`.
+SOLVER_NAMES = ("gauss-newton", "levenberg-marquardt", "variable-projection",
+                "jaxopt-levenberg-marquardt", "projected-levenberg-marquardt")
 
 def register(subparsers) -> None:
     fit = subparsers.add_parser(
@@ -24,9 +27,10 @@ def register(subparsers) -> None:
     add_bounds_argument(fit)
     fit.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     fit.add_argument("--out", help="folder for plots (PNG) and fit.json")
-    fit.add_argument("--solver", default="gauss-newton",
-                     choices=["gauss-newton", "levenberg-marquardt", "variable-projection",
-                              "jaxopt-levenberg-marquardt"])
+    # The names of SOLVER_CLASSES (pamid._solvers), written out: the parser is built for
+    # every command, and importing the solvers imports JAX (tests/test_solvers.py checks
+    # that the two lists agree).
+    fit.add_argument("--solver", default="gauss-newton", choices=SOLVER_NAMES)
     fit.add_argument("--intervals", default="wald,profile",
                      help="comma-separated: wald, profile, bootstrap, cluster (holds under "
                           "residuals correlated within curves), hac (default wald,profile)")

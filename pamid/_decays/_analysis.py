@@ -887,7 +887,7 @@ def _fit_batch(p0, scale, t, y, w, max_steps):
     weighted residual, its Jacobian (in the scaled constants), convergence and steps."""
     data = FitData(x=(t, scale), y=y, w=w, curve=np.zeros(np.shape(t), np.int32))
     sol = least_squares(TRAJECTORY, data, solver=ProjectedLevenbergMarquardt(
-        floor_per_sample=1e-24), theta0=p0, max_steps=max_steps, rtol=1e-12,
+        rtol=1e-12, floor_per_sample=1e-24), theta0=p0, max_steps=max_steps,
         outputs=("jacobian",))
     return sol.params * scale, sol.residual, sol.jac, sol.converged, sol.steps
 

@@ -264,8 +264,9 @@ def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):
     """
     data = FitData(x=(t, scale), y=y, w=w, curve=np.zeros(np.shape(t), np.int32))
     sol = least_squares(_friction_model(n_half), data,
-                        solver=ProjectedLevenbergMarquardt(floor_per_sample=ATOL_RAD**2),
-                        theta0=p0, mask=mask, max_steps=max_steps, rtol=rtol,
+                        solver=ProjectedLevenbergMarquardt(rtol=rtol,
+                                                           floor_per_sample=ATOL_RAD**2),
+                        theta0=p0, mask=mask, max_steps=max_steps,
                         outputs=("jacobian", "prediction"))
     return sol.params, sol.prediction - np.asarray(y), sol.jac, sol.converged, sol.steps
 

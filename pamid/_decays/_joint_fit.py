@@ -122,9 +122,9 @@ def _fit_batch(arm, names, method, p0, scale, y, w, dt, n, substeps, rtol, atol,
                          arm)
     data = FitData(x=(joint, scale), y=y, w=w, curve=np.zeros(np.shape(y), np.int32))
     sol = least_squares(_arm_model(tuple(names), float(dt), int(n), int(substeps)), data,
-                        solver=ProjectedLevenbergMarquardt(floor_per_sample=atol**2,
+                        solver=ProjectedLevenbergMarquardt(rtol=rtol, floor_per_sample=atol**2,
                                                            damping0=_DAMPING0[method]),
-                        theta0=p0, max_steps=max_steps, rtol=rtol, outputs=("jacobian",))
+                        theta0=p0, max_steps=max_steps, outputs=("jacobian",))
     ok = sol.converged & np.all(np.isfinite(sol.residual), axis=1)
     return sol.params * scale, sol.residual, sol.jac, ok, sol.steps
 

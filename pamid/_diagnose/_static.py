@@ -699,7 +699,7 @@ class StaticProblem:
             sol = least_squares(
                 with_effects(self.spec, bool(flag), n_slots), view, solver=REFIT_SOLVER,
                 theta0=theta0[sel], mask=mask[sel], bounds=(lower[sel], upper[sel]),
-                max_steps=MAX_ITER, rtol=RTOL, outputs=("prediction",), chunk=size)
+                max_steps=MAX_ITER, outputs=("prediction",), chunk=size)
             if pred is None:
                 pred = np.zeros((len(lanes_set), n))
             params[sel], sse[sel], pred[sel] = sol.params, sol.sse, sol.prediction
@@ -898,7 +898,7 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
 #: The refits' solver: pamid's own Levenberg–Marquardt with masks and projected bounds,
 #: stopping where a Gauss–Newton step would lower the SSE by at most RTOL of itself plus
 #: ATOL_N² per sample.
-REFIT_SOLVER = ProjectedLevenbergMarquardt(floor_per_sample=ATOL_N**2)
+REFIT_SOLVER = ProjectedLevenbergMarquardt(rtol=RTOL, floor_per_sample=ATOL_N**2)
 
 
 def lane_data(source, muscle, fold, cols, slotmask):

@@ -56,10 +56,8 @@ def _solve_batch(spec, solver, theta0, x, y, w, max_steps, rtol, atol):
     return as_solver(solver).run(spec, theta0, x, y, w, max_steps, rtol, atol)
 
 
-@functools.partial(jax.jit, static_argnames=("spec", "solver", "make", "max_steps", "rtol",
-                                             "outputs"))
-def _own_loop(spec, solver, make, max_steps, rtol, outputs, source, theta0, mask, bounds,
-              lanes):
+@functools.partial(jax.jit, static_argnames=("spec", "solver", "make", "max_steps", "outputs"))
+def _own_loop(spec, solver, make, max_steps, outputs, source, theta0, mask, bounds, lanes):
     """Every lane by pamid's own loop (``solver``, a
     :class:`~pamid._solvers.ProjectedLevenbergMarquardt`): from ``theta0`` (clipped into
     ``bounds``, per lane, where given), the constants where ``mask`` is 0 held, a constant
@@ -71,8 +69,7 @@ def _own_loop(spec, solver, make, max_steps, rtol, outputs, source, theta0, mask
         x, y, w = lane if make is None else make(source, *lane)
         if bounds is not None:
             theta0 = jnp.clip(theta0, *bounds)
-        sol = solver.lane(spec, theta0, x, y, w, mask, bounds, max_steps=max_steps,
-                          rtol=rtol)
+        sol = solver.lane(spec, theta0, x, y, w, mask, bounds, max_steps=max_steps)
         out = {"params": sol.params, "result": sol.result, "steps": sol.steps,
                "free": sol.free, "sse": sol.sse, "decrement": sol.decrement}
         if "jacobian" in outputs:
@@ -135,9 +132,9 @@ def least_squares(
         solver: the solver; where the model registers written-out kernels of its kind
             (Sárosi's Gauss–Newton), those run, from their own start. With ``bounds``,
             ``mask`` or a lane view, pamid's own loop runs:
-            :class:`~pamid._solvers.ProjectedLevenbergMarquardt` as given, or, for
-            another solver, with a stopping test of 1e-12 of the SSE (plus 1e-20 per
-            sample) and at least 200 steps.
+            :class:`~pamid._solvers.ProjectedLevenbergMarquardt` as given (its tolerances
+            are its fields), or, for another solver, with its defaults (a stopping test
+            of 1e-12 of the SSE plus 1e-20 per sample) and at least 200 steps.
         theta0: starts (lanes, p); default the model's start.
         bounds: ``(lower, upper)`` of the constants, (p,) or per lane (lanes, p): every
             lane is fitted within them by pamid's own loop (a constant on a bound whose
@@ -170,10 +167,11 @@ def least_squares(
     """
     own = bounds is not None or mask is not None or isinstance(data, LaneView)
     if own or isinstance(as_solver(solver), ProjectedLevenbergMarquardt):
-        if with_statistics:
+        # (with_statistics: None, as for every solver without a written-out kernel.)
+        if with_statistics and (bounds is not None or mask is not None):
             raise ValueError("with_statistics is for fits without bounds or held constants")
         return _least_squares_own(model, data, as_solver(solver), theta0, bounds, weights,
-                                  mask, max_steps, rtol, tuple(outputs), chunk)
+                                  mask, max_steps, tuple(outputs), chunk)
     if outputs:
         raise ValueError("outputs are given by pamid's own loop (bounds, a mask, or "
                          "solver=ProjectedLevenbergMarquardt())")
@@ -229,7 +227,7 @@ def _weighted(data, weights):
     return data._replace(w=jax.device_put(np.asarray(data.w) * weights))
 
 
-def _least_squares_own(model, data, solver, theta0, bounds, weights, mask, max_steps, rtol,
+def _least_squares_own(model, data, solver, theta0, bounds, weights, mask, max_steps,
                        outputs, chunk) -> Solution:
     """:func:`least_squares` by pamid's own loop (its docstring): masks, bounds per lane,
     lane views, and more of each lane's solution."""
@@ -239,9 +237,9 @@ def _least_squares_own(model, data, solver, theta0, bounds, weights, mask, max_s
                          "'prediction'")
     data = _weighted(data, weights)
     if not isinstance(solver, ProjectedLevenbergMarquardt):
-        # A fit within bounds, whatever the solver: the own loop to a tight tolerance.
-        solver = ProjectedLevenbergMarquardt(floor_per_sample=1e-20)
-        max_steps, rtol = max(max_steps, 200), 1e-12
+        # A fit within bounds, whatever the solver: the own loop, to its tight tolerance.
+        solver = ProjectedLevenbergMarquardt()
+        max_steps = max(max_steps, 200)
     view = isinstance(data, LaneView)
     n = data.n_lanes if view else int(np.shape(data.y)[0])
     if theta0 is None:
@@ -258,8 +256,8 @@ def _least_squares_own(model, data, solver, theta0, bounds, weights, mask, max_s
             raise ValueError("every lower bound must be at most its upper bound")
     outputs = tuple(sorted(outputs))
     run = functools.partial(_own_loop, model, solver, data.make if view else None,
-                            max_steps, rtol, outputs)
-    key = _key("own_loop", model, solver, max_steps, rtol, outputs,
+                            max_steps, outputs)
+    key = _key("own_loop", model, solver, max_steps, outputs,
                None if not view else f"{data.make.__module__}.{data.make.__qualname__}")
     if not view:
         out = map_lanes(lambda t0, m, b, *lane: run(None, t0, m, b, lane), theta0, mask,

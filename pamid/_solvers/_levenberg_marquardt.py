@@ -182,27 +182,33 @@ class ProjectedLevenbergMarquardt(Solver):
     held constants, and for any fit it is given to (``--solver
     projected-levenberg-marquardt``).
 
+    Its tolerances are its fields, as optimistix's solvers' are (the entry's ``rtol`` and
+    ``atol`` are not used); the defaults are those of every fit within bounds.
+
     Attributes:
-        floor_per_sample: the stopping test's absolute term, per sample of weight > 0
-            (an absolute tolerance squared: for data the model fits exactly).
+        rtol: the stopping test: a Gauss–Newton step would lower the SSE by at most ``rtol``
+            of itself plus ...
+        floor_per_sample: ... this per sample of weight > 0 (an absolute tolerance
+            squared: for data the model fits exactly).
         damping0: the first step's damping, relative to the diagonal of JᵀJ.
     """
 
     name: ClassVar[str] = "projected-levenberg-marquardt"
     restarts: ClassVar[bool] = True
-    floor_per_sample: float = 0.0
+    rtol: float = 1e-12
+    floor_per_sample: float = 1e-20
     damping0: float = 1e-3
 
-    def lane(self, spec, theta0, x, y, w, mask=None, bounds=None, *, max_steps: int,
-             rtol: float) -> Solution:
+    def lane(self, spec, theta0, x, y, w, mask=None, bounds=None, *,
+             max_steps: int) -> Solution:
         """One lane (:func:`fit_lane`), batched by the entry with ``jax.vmap``."""
-        return fit_lane(spec, theta0, x, y, w, mask, max_steps=max_steps, rtol=rtol,
+        return fit_lane(spec, theta0, x, y, w, mask, max_steps=max_steps, rtol=self.rtol,
                         floor_per_sample=self.floor_per_sample, bounds=bounds,
                         damping0=self.damping0)
 
     def run(self, spec, theta0, x, y, w, max_steps, rtol, atol):
-        sol = jax.vmap(lambda t0, x, y, w: self.lane(spec, t0, x, y, w, max_steps=max_steps,
-                                                     rtol=rtol))(theta0, x, y, w)
+        sol = jax.vmap(lambda t0, x, y, w: self.lane(spec, t0, x, y, w,
+                                                     max_steps=max_steps))(theta0, x, y, w)
         return sol.params, sol.result == CONVERGED, sol.steps
 
 
