@@ -60,9 +60,7 @@ from .._fit._api import fit_least_squares
 from .._fit._least_squares import bounds_arrays, least_squares, model_at, model_jacobian
 from .._fit._spec import ModelSpec
 from .._inference import cut_at_bounds, residual_variance, unscaled_covariance, wald_interval
-from .._lanes import _export_cache
-from .._lanes._batch import SMALL_BATCH_SAMPLES, LaneView, items_per_call, map_lanes, pack
-from .._lanes._sharding import lane_devices
+from .._lanes._batch import SMALL_BATCH_SAMPLES, LaneView, items_per_call, map_shared, pack
 from .._solvers import CONVERGED, MAX_STEPS, ProjectedLevenbergMarquardt
 from .._units import KPA_PER_BAR, per_l0
 from ._residual import autocorrelation_time, legendre_basis, scaled
@@ -685,25 +683,18 @@ class StaticProblem:
                                 eff_bounds[1][lanes_set]], axis=1)
         size = items_per_call(n_samples=n, max_lane_samples=CALL_LANE_SAMPLES,
                               max_lanes=CALL_LANES)
-        p = k + n_tr + n_slots
-        params, sse, pred = np.zeros((len(lanes_set), p)), np.zeros(len(lanes_set)), None
-        result, decrement = np.zeros(len(lanes_set), int), np.zeros(len(lanes_set))
-        free = np.zeros((len(lanes_set), p))
-        for flag in (False, True):
-            sel = np.flatnonzero(lane_comp == flag)
-            if sel.size == 0:
-                continue
+
+        def refit(flag, sel):
             view = LaneView(source, (lanes_muscle[sel], lanes_fold[sel],
                                      cols[lanes_set[sel]], slotmask[lanes_set[sel]]),
-                            lane_data, n)
+                            lane_data)
             sol = least_squares(
-                with_effects(self.spec, bool(flag), n_slots), view, solver=REFIT_SOLVER,
+                with_effects(self.spec, flag, n_slots), view, solver=REFIT_SOLVER,
                 theta0=theta0[sel], mask=mask[sel], bounds=(lower[sel], upper[sel]),
                 max_steps=MAX_ITER, outputs=("prediction",), chunk=size)
-            if pred is None:
-                pred = np.zeros((len(lanes_set), n))
-            params[sel], sse[sel], pred[sel] = sol.params, sol.sse, sol.prediction
-            result[sel], decrement[sel], free[sel] = sol.result, sol.decrement, sol.free
+            return sol.params, sol.sse, sol.prediction, sol.result, sol.decrement, sol.free
+
+        params, sse, pred, result, decrement, free = _by_kind(lane_comp, refit)
         # Each lane's residual on every row (data − model, the held-out rows too), and its
         # held-out squared error.
         w = np.asarray(self.data.w)
@@ -868,31 +859,20 @@ def _by_kind(implicit, run):
 
 def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function: the
-    statistics of the refits) over the lanes, in calls of one size for a given sample count,
-    as the refits run (:func:`pamid._fit._least_squares.least_squares` with a lane view):
-    ``CALL_LANES`` lanes, fewer (a power of two) where that many would hold more than
+    statistics of the refits) over the lanes as the refits run
+    (:func:`pamid._fit._least_squares.least_squares` with a lane view): in calls of one size
+    for a given sample count (:func:`pamid._lanes._batch.map_shared`), ``CALL_LANES``
+    lanes, fewer (a power of two) where that many would hold more than
     ``CALL_LANE_SAMPLES`` lane-samples (pamid's one lane sizer,
-    :func:`pamid._lanes._batch.items_per_call`); fewer lanes than one call holds are
-    padded (repeating the last lane)."""
-    n = len(lanes[0])
-    n_samples = shared[1].shape[1]
-    size = items_per_call(n_samples=n_samples, max_lane_samples=CALL_LANE_SAMPLES,
+    :func:`pamid._lanes._batch.items_per_call`), through the exported program on disk when
+    the command line keeps them (a new process then skips tracing the lanes)."""
+    size = items_per_call(n_samples=shared[1].shape[1], max_lane_samples=CALL_LANE_SAMPLES,
                           max_lanes=CALL_LANES)
-    if n < size:
-        idx = np.minimum(np.arange(size), n - 1)
-        lanes = tuple(a[idx] for a in lanes)
-    run = functools.partial(fn, spec, with_compliance)
     key = spec.program_key
-    if key is not None and len(lane_devices()) == 1:
-        # Through the exported program on disk when the command line keeps them: a new
-        # process then skips tracing the lanes (most of a warm diagnosis of 1,000 rows).
-        layout = tuple(d.name for d in transforms())
-        key = (name, *key, with_compliance, *layout)
-        out = map_lanes(lambda *a: _export_cache.call(key, run, shared, *a), *lanes,
-                        chunk=size)
-    else:
-        out = map_lanes(lambda *a: run(shared, *a), *lanes, chunk=size)
-    return jax.tree.map(lambda a: a[:n], out)
+    if key is not None:
+        key = (name, *key, with_compliance, *(d.name for d in transforms()))
+    return map_shared(functools.partial(fn, spec, with_compliance), shared, *lanes,
+                      chunk=size, cache_key=key)
 
 
 #: The refits' solver: pamid's own Levenberg–Marquardt with masks and projected bounds,

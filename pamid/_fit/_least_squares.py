@@ -27,9 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import unscaled_covariance
-from .._lanes import _export_cache
-from .._lanes._batch import FitData, LaneView, map_lanes, padded_rows
-from .._lanes._sharding import lane_devices
+from .._lanes._batch import FitData, LaneView, map_lanes, map_shared, padded_rows
 from .._solvers import (  # noqa: F401 - residuals: where the weighted residual is found
     CONVERGED,
     MAX_STEPS,
@@ -165,18 +163,19 @@ def least_squares(
         loop also ``sse``, ``free`` (0 where a constant was held), ``decrement`` and the
         ``outputs`` asked for.
     """
-    own = bounds is not None or mask is not None or isinstance(data, LaneView)
-    if own or isinstance(as_solver(solver), ProjectedLevenbergMarquardt):
+    solver = as_solver(solver)
+    constrained = bounds is not None or mask is not None
+    if (constrained or isinstance(data, LaneView)
+            or isinstance(solver, ProjectedLevenbergMarquardt)):
         # (with_statistics: None, as for every solver without a written-out kernel.)
-        if with_statistics and (bounds is not None or mask is not None):
+        if with_statistics and constrained:
             raise ValueError("with_statistics is for fits without bounds or held constants")
-        return _least_squares_own(model, data, as_solver(solver), theta0, bounds, weights,
-                                  mask, max_steps, tuple(outputs), chunk)
+        return _least_squares_own(model, data, solver, theta0, bounds, weights, mask,
+                                  max_steps, tuple(outputs), chunk)
     if outputs:
         raise ValueError("outputs are given by pamid's own loop (bounds, a mask, or "
                          "solver=ProjectedLevenbergMarquardt())")
     data = _weighted(data, weights)
-    solver = as_solver(solver)
     solver.check(model)
     kernel = solver.kernel(model)
     fast = model.kernels
@@ -263,21 +262,8 @@ def _least_squares_own(model, data, solver, theta0, bounds, weights, mask, max_s
         out = map_lanes(lambda t0, m, b, *lane: run(None, t0, m, b, lane), theta0, mask,
                         bounds, data.x, data.y, data.w, chunk=chunk, cache_key=key)
     else:
-        # Calls of exactly ``chunk`` lanes (the last repeated): one compiled shape per
-        # sample count, whatever the number of lanes. The shared arrays are an argument of
-        # the program kept on disk, not a constant of it.
-        size = chunk or n
-        lanes = (theta0, mask, bounds, tuple(data.index))
-        if n < size:
-            idx = np.minimum(np.arange(size), n - 1)
-            lanes = jax.tree.map(lambda a: np.asarray(a)[idx], lanes)
-
-        def call(t0, m, b, index):
-            if key is not None and len(lane_devices()) == 1:
-                return _export_cache.call(key, run, data.source, t0, m, b, index)
-            return run(data.source, t0, m, b, index)
-
-        out = jax.tree.map(lambda a: a[:n], map_lanes(call, *lanes, chunk=size))
+        out = map_shared(run, data.source, theta0, mask, bounds, tuple(data.index),
+                         chunk=chunk or n, cache_key=key)
     result = np.asarray(out["result"])
     theta = np.asarray(out["params"])
     result = np.where(np.all(np.isfinite(theta), axis=-1), result, NONFINITE)

@@ -56,14 +56,11 @@ class LaneView(NamedTuple):
         source: the shared arrays (a pytree), on the device once.
         index: per-lane arrays (a tuple, leading lane axis): what ``make`` reads a lane by.
         make: a module-level function (its name keys the compiled programs kept on disk).
-        n_samples: the samples of a lane (the rows of ``source``'s arrays), for the call's
-            size (:func:`items_per_call`).
     """
 
     source: object
     index: tuple
     make: object
-    n_samples: int
 
     @property
     def n_lanes(self) -> int:
@@ -314,6 +311,25 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
     elif _export_cache.only_cached():
         raise _export_cache.NotCached("a call that is not kept on disk")
     return _map_lanes_one_device(fn, arrays, n, chunk, device, cpu)
+
+
+def map_shared(fn, source, *lanes, chunk: int, cache_key: tuple | None = None):
+    """``fn(source, *lanes)`` over the lanes (pytrees with a leading lane axis) in calls of
+    exactly ``chunk`` lanes, fewer lanes padded by repeating the last: one compiled shape
+    whatever the number of lanes. ``source`` (arrays every lane reads, a
+    :class:`LaneView`'s) is an argument of every call, and of the program kept on disk
+    under ``cache_key`` (on one device), not a constant of it."""
+    n = int(np.shape(jax.tree.leaves(lanes)[0])[0])
+    if n < chunk:
+        idx = np.minimum(np.arange(chunk), n - 1)
+        lanes = jax.tree.map(lambda a: np.asarray(a)[idx], lanes)
+    if cache_key is not None and len(lane_devices()) == 1:
+        def call(*part):
+            return _export_cache.call(cache_key, fn, source, *part)
+    else:
+        def call(*part):
+            return fn(source, *part)
+    return jax.tree.map(lambda a: a[:n], map_lanes(call, *lanes, chunk=chunk))
 
 
 def call_layout(n: int, chunk: int, cpu: bool = True, lane_size: int = 1) -> tuple[int, bool]:

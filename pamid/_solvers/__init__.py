@@ -12,7 +12,7 @@ for interval ends, to :func:`pamid._fit._intervals.profile`.
 - ``_levenberg_marquardt.py``: :class:`LevenbergMarquardt` (optimistix's loop), and pamid's
   masked loop with projected bounds, :func:`levenberg_marquardt`, as the solver value
   :class:`ProjectedLevenbergMarquardt` (fits within bounds, diagnosis refits, decay
-  trajectory and Coulomb fits, through the one entry; the joint fits, lane by lane);
+  trajectory, Coulomb and joint fits, through the one entry);
 - ``_variable_projection.py``: :class:`VariableProjection` (its bracket refinement);
 - ``_jaxopt.py``: :class:`JaxoptLevenbergMarquardt`, for comparison (jaxopt's loop);
 - ``_profile.py``: :class:`ProfileNewton`, the ends of profile intervals (a root finder,
