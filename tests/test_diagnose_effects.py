@@ -14,6 +14,7 @@ import math
 from types import SimpleNamespace
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -174,7 +175,6 @@ def test_a_model_with_effects_is_a_model_the_one_entry_fits(theta31):
     ``pamid.engine.solve`` fits like any model: noise-free Sárosi data with a rig in series
     (c), a pressure-sensor offset (δ) and a linear drift (φ) give back every constant from
     a start 2 % off."""
-    import jax.numpy as jnp
 
     from pamid._effects._compliance import Compliance
     from pamid._effects._model import with_effects
@@ -219,6 +219,50 @@ def test_a_model_with_effects_is_a_model_the_one_entry_fits(theta31):
     sol = pamid.engine.least_squares(
         alone, data._replace(x=data.x[:-1], y=jnp.asarray(y)[None]),
         solver="levenberg-marquardt", theta0=truth[None] * 1.02, max_steps=200)
+    assert sol.converged[0]
+    np.testing.assert_allclose(sol.params[0], truth, rtol=1e-6)
+
+
+def test_a_decay_effect_is_a_model_that_wraps_the_oscillator():
+    """The free decays' effects wrap the linear oscillator as the static effects wrap a
+    force law: the decay diagnosis's model is DecayDrift(CoulombFriction(Trajectory)), in
+    the registry's order; one effect alone is fitted through the one entry; and the Coulomb
+    friction's response is the NumPy reference's (the virtual bench's injector)."""
+    from pamid._decays._analysis import TRAJECTORY
+    from pamid._decays._coulomb import FIT_NAMES, decay_model
+    from pamid._effects._coulomb_friction import CoulombFriction
+    from pamid._effects._drift import DecayDrift
+    from pamid._virtual._decay import coulomb_decay
+
+    model = decay_model(32)
+    assert isinstance(model, DecayDrift) and isinstance(model.base, CoulombFriction)
+    assert model.base.base is TRAJECTORY.base and model.param_names == FIT_NAMES
+    assert [e.model for e in DECAY_EFFECT_DEFINITIONS] == [CoulombFriction, DecayDrift]
+
+    # Cullinan's arm (ζ = 0.05, f_n = 2.2 Hz), released from 0.15 rad with T_c/k = 4 mrad
+    zeta, omega, a0, r0, eq, uc = 0.05, 2 * np.pi * 2.2, 0.15, 0.1, 0.01, 0.004
+    t = np.linspace(0.0, 3.0, 751)
+    alone = CoulombFriction.wrap(TRAJECTORY.base, n_half=32)
+    assert alone.param_names == (*TRAJECTORY.base.param_names, "coulomb_shift_rad")
+    truth = np.array([zeta, omega, a0, r0, eq, uc])
+    y = np.asarray(alone.predict(jnp.asarray(truth), (jnp.asarray(t),)))
+    # J = 1, k = ω_n², c = 2ζω_n: the NumPy reference with the friction torque T_c = u_c·k
+    ref = coulomb_decay(1.0, omega**2, 2 * zeta * omega, eq, uc * omega**2, a0, r0, t)
+    np.testing.assert_allclose(y, ref, atol=1e-12)
+    # with the drift: the wrapped decay started at the rate β̇(0) − r, plus r·t
+    both = decay_model(32)
+    r = 0.002
+    lowered = truth.copy()
+    lowered[3] -= r
+    np.testing.assert_allclose(
+        both.predict(jnp.asarray([*truth, r]), (jnp.asarray(t),)),
+        alone.predict(jnp.asarray(lowered), (jnp.asarray(t),)) + r * t, atol=1e-15)
+
+    # the friction alone, fitted through the one entry from a start 2 % off
+    data = pamid.FitData(x=(jnp.asarray(t)[None],), y=jnp.asarray(y)[None],
+                         w=jnp.ones((1, t.size)), curve=jnp.zeros((1, t.size), jnp.int32))
+    sol = pamid.engine.least_squares(alone, data, solver="levenberg-marquardt",
+                                     theta0=truth[None] * 1.02, max_steps=200)
     assert sol.converged[0]
     np.testing.assert_allclose(sol.params[0], truth, rtol=1e-6)
 

@@ -106,6 +106,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
@@ -115,7 +116,7 @@ from .._fit._spec import ModelSpec, scaled
 from .._inference import covariance, t_critical, unscaled_covariance, wald_interval
 from .._io import json_ready as _plain
 from .._lanes._batch import FitData
-from .._sim._oscillator import DampedOscillator, oscillator_response
+from .._sim._oscillator import DampedOscillator, cos_sinc, oscillator_response
 from .._solvers import ProjectedLevenbergMarquardt
 
 __all__ = [
@@ -864,10 +865,30 @@ def _model_angle(theta, t):
 @dataclass(frozen=True, eq=False, kw_only=True)
 class Trajectory(ModelSpec):
     """The linear damped oscillator's free response as a model: ``theta`` = :data:`FIT_NAMES`,
-    ``x`` = (time since the window's start, s,)."""
+    ``x`` = (time since the window's start, s,). What a free decay's effects wrap
+    (:class:`pamid._effects._coulomb_friction.CoulombFriction`,
+    :class:`pamid._effects._drift.DecayDrift`): they read its modal constants, its state at
+    t = 0 and its closed form about the centre."""
 
     def predict(self, theta, x):
         return _model_angle(theta, x[0])
+
+    @staticmethod
+    def modal(theta):
+        """(σ, ω_n²) = (ζ·ω_n, ω_n²) (Cullinan eq. 11)."""
+        return theta[0] * theta[1], theta[1] ** 2
+
+    @staticmethod
+    def state0(theta):
+        """(β_eq, the displacement β(0) − β_eq, the rate β̇(0))."""
+        return theta[4], theta[2] - theta[4], theta[3]
+
+    @staticmethod
+    def segment(sigma, wn2, x0, v0, s):
+        """The displacement s after a start (x0, v0) about the centre: the closed form of
+        :func:`pamid._sim._oscillator.oscillator_response`, any damping."""
+        c, sn = cos_sinc(wn2 - sigma**2, s)
+        return jnp.exp(-sigma * s) * (x0 * c + (v0 + sigma * x0) * sn)
 
 
 #: The trajectory fit's model, in constants divided by each lane's scale.

@@ -4,40 +4,26 @@ and one batched, cross-validated fit of every (effect set × trial × fold).
 Baseline (Cullinan, section VI, the model behind eq. 8–11): the arm is a linear damped
 oscillator, J·β̈ + c·β̇ + k·(β − β_eq) = 0, with ω_n² = k/J and ζ = c/(2·√(k·J)) (eq. 11).
 
-Candidate effects (neither is in the sources; both are standard mechanics):
+Candidate effects (neither is in the sources; both are standard mechanics), each a model
+that wraps the oscillator (:class:`~pamid._decays._analysis.Trajectory`), in the order of
+:data:`~pamid._effects._definitions.DECAY_EFFECT_DEFINITIONS` (:func:`decay_model`):
 
-* ``"coulomb_friction"``: a constant friction torque T_c against the motion (sliding seals,
-  the cable over the pulley; Cullinan blames the sleeve PAM's hysteresis on the seal's
-  friction, section IV):
+* ``"coulomb_friction"`` (:class:`pamid._effects._coulomb_friction.CoulombFriction`): a
+  constant friction torque T_c against the motion (sliding seals, the cable over the
+  pulley): J·β̈ + c·β̇ + k·(β − β_eq) + T_c·sign(β̇) = 0, sticking for good where the arm
+  comes to rest with k·|β − β_eq| ≤ T_c. Each half cycle is the oscillator's closed form
+  about the shifted centre β_eq − sign(β̇)·u_c, u_c = T_c/k. This is the model of
+  :func:`pamid._virtual._decay.coulomb_decay` (NumPy, a Python loop);
+  :func:`coulomb_response` is the same in JAX, pure and exact (no smoothed sign): a
+  ``lax.scan`` over a fixed number of half cycles computes each one's start time, centre
+  and start state analytically, and every sample evaluates the closed form of its half
+  cycle. The fit lets u_c take either sign (the analytic continuation), so that near
+  u_c = 0 the fit and its Wald interval are smooth and an interval can contain 0.
 
-      J·β̈ + c·β̇ + k·(β − β_eq) + T_c·sign(β̇) = 0,
-
-  and the arm sticks for good when it comes to rest where k·|β − β_eq| ≤ T_c. Between two
-  instants of zero velocity the friction torque is constant, so each half cycle is the
-  closed-form linear decay (:func:`pamid._sim._oscillator.oscillator_response`) about the
-  shifted centre β_eq − sign(β̇)·u_c, u_c = T_c/k; a half cycle started from rest lasts
-  exactly π/ω_d. This is the model of :func:`pamid._virtual._decay.coulomb_decay`
-  (NumPy, a Python loop); :func:`coulomb_response` is the same in JAX, pure and exact (no
-  smoothed sign): a ``lax.scan`` over a fixed number of half cycles computes each one's
-  start time, centre and start state analytically; every sample then evaluates the closed
-  form of its half cycle (found with ``searchsorted``). A stuck arm is a "half cycle" that
-  starts at rest on its own centre and never ends, so sticking needs no separate branch.
-  The position and the velocity are continuous at the half-cycle boundaries, so the
-  samples' derivatives with respect to the boundary times are the velocity's (zero there),
-  and every parameter has a finite gradient except where a change flips a sticking
-  decision. The fit lets u_c take either sign: negative u_c is the analytic continuation
-  ("friction" that feeds energy in, the amplitude growing by 2·|u_c| per half cycle; it
-  never sticks), so that near u_c = 0 the fit and its Wald interval are smooth and an
-  interval can contain 0.
-
-* ``"drift"``: the equilibrium moves linearly in time, β_eq(t) = β_eq + r·t (a slow leak,
-  a creeping set point, an encoder drifting with temperature). The angle is
-  β(t) = β_eq + r·t + u(t), u the (friction) decay of the displacement from the moving
-  centre, started from u(0) = β(0) − β_eq, u̇(0) = β̇(0) − r. Without friction this is the
-  exact solution of J·β̈ + c·β̇ + k·(β − β_eq − r_sp·t) = 0 (a set point moving at r_sp = r,
-  which the arm follows c·r/k behind; β_eq here is the centre at t = 0, not the set
-  point). With friction as well, the friction's sign follows u̇ instead of β̇ = u̇ + r: exact
-  for r = 0, and the switching instants are off by about r/(ω_n²·amplitude) otherwise.
+* ``"drift"`` (:class:`pamid._effects._drift.DecayDrift`): the equilibrium moves linearly
+  in time, β_eq(t) = β_eq + r·t (a slow leak, a creeping set point, an encoder drifting
+  with temperature): β(t) = r·t + the wrapped decay started from β(0) and β̇(0) − r; with
+  the friction as well, the friction's sign follows the rate about the moving centre.
 
 Fit (:func:`fit_decay_models`): for every effect set (a tuple of effect names; ``()`` is
 the baseline) and every trial, the model is fitted to the samples of the window that
@@ -71,7 +57,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
@@ -82,9 +68,16 @@ from .._fit._least_squares import least_squares
 from .._fit._spec import ModelSpec, scaled
 from .._inference import covariance, wald_interval
 from .._lanes._batch import FitData
-from .._sim._oscillator import cos_sinc
 from .._solvers import ProjectedLevenbergMarquardt
-from ._analysis import DecrementEstimate, Extrema, TrajectoryFit, _plain, fit_decay_trajectories
+from ._analysis import FIT_NAMES as TRAJECTORY_NAMES
+from ._analysis import (
+    TRAJECTORY,
+    DecrementEstimate,
+    Extrema,
+    TrajectoryFit,
+    _plain,
+    fit_decay_trajectories,
+)
 
 __all__ = [
     "DECAY_EFFECTS",
@@ -100,89 +93,33 @@ __all__ = [
 #: registry of effects (:data:`pamid._effects._definitions.DECAY_EFFECT_DEFINITIONS`).
 DECAY_EFFECTS = {e.name: e.fit_name for e in DECAY_EFFECT_DEFINITIONS}
 #: The fixed parameter layout of every lane (the last two are the effects' constants).
-FIT_NAMES = (
-    "zeta",
-    "omega_n_rad_s",
-    "angle0_rad",
-    "rate0_rad_s",
-    "equilibrium_rad",
-    "coulomb_shift_rad",
-    "drift_rad_s",
-)
-N_BASE = 5
+FIT_NAMES = (*TRAJECTORY_NAMES, *(e.fit_name for e in DECAY_EFFECT_DEFINITIONS))
+N_BASE = len(TRAJECTORY_NAMES)
 #: Contiguous blocks per fold in the cross-validation (20 blocks for 5 folds).
 BLOCKS_PER_FOLD = 4
-#: Duration of a half cycle that never ends (over-damped, or stuck), in s: finite, so that
-#: no inf or NaN enters a gradient, and longer than any record.
-_NEVER_S = 1e12
 LEVEL = 0.95
 #: Absolute convergence floor of the fit, rad per sample (far below any encoder step).
 ATOL_RAD = 1e-12
 
 
 # --------------------------------------------------------------------------------------
-# The exact Coulomb-friction decay in JAX
+# The decay model: the oscillator wrapped in every candidate effect
 # --------------------------------------------------------------------------------------
 
 
-def _segment(sigma, wn2, x0, v0, s):
-    """x(s) of ẍ + 2σẋ + ω_n²x = 0 from (x0, v0): the closed form of
-    :func:`pamid._sim._oscillator.oscillator_response`, any damping."""
-    c, sn = cos_sinc(wn2 - sigma**2, s)
-    return jnp.exp(-sigma * s) * (x0 * c + (v0 + sigma * x0) * sn)
-
-
-def _half_cycles(sigma, wn2, u0, v0, shift, n_half):
-    """Start time, centre and start state (x0 about the centre, v0) of each half cycle.
-
-    Returns (starts, centres, x0s, v0s, end): arrays of length ``n_half`` and the end time
-    of the last half cycle. The velocity is zero at the start of every half cycle but the
-    first; the next rest comes π/ω_d later, or, for the first, at the first zero of the
-    rate (as ``_next_rest`` in :mod:`pamid._virtual._decay`, in a form that stays
-    accurate near critical damping). Without oscillation (ω_d² ≤ 0) the first half cycle
-    never ends, as in the reference.
-    """
-    wd2 = wn2 - sigma**2
-    turns = wd2 > 0
-    wd = jnp.sqrt(jnp.where(turns, wd2, 1.0))
-
-    def step(carry, _):
-        u, v, tau, stuck = carry
-        stuck = stuck | ((shift > 0) & (v == 0) & (jnp.abs(u) <= shift))
-        direction = jnp.where(v != 0, jnp.where(v > 0, 1.0, -1.0), jnp.where(u >= 0, -1.0, 1.0))
-        centre = jnp.where(stuck, u, -direction * shift)
-        x0 = jnp.where(stuck, 0.0, u - centre)
-        v = jnp.where(stuck, 0.0, v)
-        # The rate is e^(−σs)·(v·cos ω_d s − q·sin(ω_d s)/ω_d), q = σ·v + ω_n²·x0: it is next
-        # zero at ω_d·s = θ ∈ (0, π] with tan θ = v·ω_d/q. From rest that is exactly π;
-        # atan2(|v|·ω_d, sign(v)·q) stays accurate as ω_d → 0 (near critical damping,
-        # θ/ω_d → v/q), and runs on safe values so that a stuck arm's atan2(0, 0) puts no
-        # NaN into a gradient.
-        moving = v != 0
-        v_safe = jnp.where(moving, v, 1.0)
-        sign = jnp.where(v_safe > 0, 1.0, -1.0)
-        theta = jnp.arctan2(jnp.abs(v_safe) * wd, sign * (sigma * v_safe + wn2 * x0))
-        theta = jnp.where(moving & (theta > 0), theta, math.pi)
-        ends = turns & ~stuck
-        span = jnp.where(ends, theta / wd, _NEVER_S)
-        x_end = _segment(sigma, wn2, x0, v, jnp.where(ends, span, 0.0))
-        return (centre + x_end, jnp.zeros_like(v), tau + span, stuck), (tau, centre, x0, v)
-
-    init = (u0, v0, jnp.zeros_like(u0), jnp.zeros_like(u0, dtype=bool))
-    (_, _, end, _), (starts, centres, x0s, v0s) = jax.lax.scan(step, init, None, length=n_half)
-    return starts, centres, x0s, v0s, end
-
-
-def _response(theta, t, n_half):
-    """Angle at times ``t`` ≥ 0 for θ in the layout of :data:`FIT_NAMES` (one lane)."""
-    zeta, omega, angle0, rate0, eq, shift, drift = (theta[i] for i in range(7))
-    sigma, wn2 = zeta * omega, omega**2
-    starts, centres, x0s, v0s, end = _half_cycles(
-        sigma, wn2, angle0 - eq, rate0 - drift, shift, n_half
-    )
-    k = jnp.clip(jnp.searchsorted(starts, t, side="right") - 1, 0, n_half - 1)
-    u = centres[k] + _segment(sigma, wn2, x0s[k], v0s[k], t - starts[k])
-    return jnp.where(t < end, eq + drift * t + u, jnp.nan)
+@functools.cache
+def decay_model(n_half: int) -> ModelSpec:
+    """The linear oscillator (:class:`~pamid._decays._analysis.Trajectory`) wrapped in every
+    effect of :data:`~pamid._effects._definitions.DECAY_EFFECT_DEFINITIONS`, in its order
+    (the Coulomb friction over ``n_half`` half cycles, then the drift): ``theta`` =
+    :data:`FIT_NAMES`, ``x`` = (time since the window's start, s,). One object per
+    ``n_half``, so that its compiled programs are reused."""
+    model = TRAJECTORY.base
+    for e in DECAY_EFFECT_DEFINITIONS:
+        fields = {"n_half": n_half} if "n_half" in e.model.__dataclass_fields__ else {}
+        model = e.model.wrap(model, **fields)
+    return replace(model, name="decay_with_effects",
+                   source="the linear decay with Coulomb friction and a drifting equilibrium")
 
 
 @functools.partial(jax.jit, static_argnames=("max_half_cycles",))
@@ -198,7 +135,8 @@ def coulomb_response(
     drift_rad_s=0.0,
     max_half_cycles=64,
 ):
-    """Exact angle of J·β̈ + c·β̇ + k·(β − β_eq(t)) + T_c·sign(β̇) = 0 at times ``t_s`` ≥ 0.
+    """Exact angle of J·β̈ + c·β̇ + k·(β − β_eq(t)) + T_c·sign(β̇) = 0 at times ``t_s`` ≥ 0:
+    :func:`decay_model` at these constants.
 
     Args:
         zeta, omega_n_rad_s: ζ and ω_n of the viscous oscillator (Cullinan eq. 11).
@@ -218,7 +156,7 @@ def coulomb_response(
     values = (zeta, omega_n_rad_s, angle0_rad, rate0_rad_s, equilibrium_rad, coulomb_shift_rad)
     theta = jnp.stack([jnp.asarray(x, float) for x in (*values, drift_rad_s)])
     t = jnp.asarray(t_s, float)
-    return _response(theta, t.ravel(), max_half_cycles).reshape(t.shape)
+    return decay_model(max_half_cycles).predict(theta, (t.ravel(),)).reshape(t.shape)
 
 
 # --------------------------------------------------------------------------------------
@@ -226,30 +164,11 @@ def coulomb_response(
 # --------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, eq=False, kw_only=True)
-class FrictionResponse(ModelSpec):
-    """The decay with the candidate effects (:func:`_response`) as a model: ``theta`` =
-    :data:`FIT_NAMES`, ``x`` = (time since the window's start, s,); ``n_half`` half-cycles
-    of the friction's piecewise response."""
-
-    n_half: int
-
-    def predict(self, theta, x):
-        return _response(theta, x[0], self.n_half)
-
-
 @functools.cache
 def _friction_model(n_half: int) -> ModelSpec:
-    """The friction model of ``n_half`` half-cycles, in constants divided by each lane's
-    scale (:func:`~pamid._fit._spec.scaled`): one object per ``n_half``, so that its
-    compiled programs are reused."""
-    return scaled(FrictionResponse(
-        n_half=n_half, name="decay_with_effects", param_names=FIT_NAMES,
-        param_units=dict(zip(FIT_NAMES, ("1", "rad/s", "rad", "rad/s", "rad", "rad",
-                                         "rad/s"), strict=True)),
-        units={"angle": "rad", "time": "s"}, columns=("time_s",),
-        source="the linear decay with Coulomb friction and a drifting equilibrium",
-        output=("angle", "rad")))
+    """:func:`decay_model` in constants divided by each lane's scale
+    (:func:`~pamid._fit._spec.scaled`)."""
+    return scaled(decay_model(n_half))
 
 
 def _fit_lanes(p0, scale, mask, t, y, w, n_half, max_steps, rtol):

@@ -258,15 +258,22 @@ def _fmt(v: float, unit: str, muscle: MuscleContext | None) -> str:
 class DecayEffect:
     """A candidate effect of a free-decay diagnosis (:mod:`pamid._decays._coulomb`):
     ``fit_name`` is its constant in the lanes' layout, ``key`` and ``constant`` how it is
-    reported."""
+    reported; ``model`` the effect as a model that wraps the oscillator (an
+    :class:`~pamid._effects._wrappers.EffectWrapper` subclass in the effect's module, whose
+    one constant is ``fit_name``)."""
 
     name: str
     covariate: str
-    fit_name: str
     key: str
     constant: Constant
     injector: str | None
     doc: str
+    model: type
+
+    @property
+    def fit_name(self) -> str:
+        """The effect's constant in the decay model: its wrapper's one constant."""
+        return self.model.constants[0].name
 
     def violation(self, value: float) -> str | None:
         c = self.constant

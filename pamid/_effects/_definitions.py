@@ -4,10 +4,11 @@ Adding an effect is one module and one line here."""
 
 from __future__ import annotations
 
-from ._base import Constant, DecayEffect, EffectDefinition
+from ._base import DecayEffect, EffectDefinition
 from ._compliance import compliance
+from ._coulomb_friction import coulomb_friction
 from ._covariate import covariate
-from ._drift import drift
+from ._drift import decay_drift, drift
 from ._hysteresis import hysteresis
 from ._sensor_offset import sensor_offset
 from ._softening import softening
@@ -30,16 +31,6 @@ def transforms() -> tuple[EffectDefinition, ...]:
     return tuple(d for d in STATIC_EFFECT_DEFINITIONS if d.model is not None)
 
 
-DECAY_EFFECT_DEFINITIONS: tuple[DecayEffect, ...] = (
-    DecayEffect(
-        "coulomb_friction", "velocity_rad_s", "coulomb_shift_rad", "coulomb_Nm",
-        Constant("coulomb_Nm", "N·m", lower=0.0),
-        "pamid._virtual._decay.simulate_decays (coulomb_Nm=)",
-        "A constant friction torque T_c·sign(β̇) (the sliding seal, the cable over the "
-        "pulley): the amplitude falls linearly instead of geometrically; T_c ≥ 0 "
-        "(dissipation)."),
-    DecayEffect(
-        "drift", "elapsed_s", "drift_rad_s", "drift_rad_s", Constant("drift_rad_s", "rad/s"),
-        "pamid._virtual._decay.simulate_decays (drift_rad_s=)",
-        "An equilibrium that moves with time, β_eq + r·t (a slow leak); either sign."),
-)
+#: Every candidate effect of a free-decay diagnosis; their order is that of their constants
+#: in the decay model (:func:`pamid._decays._coulomb.decay_model`), each wrapping the last.
+DECAY_EFFECT_DEFINITIONS: tuple[DecayEffect, ...] = (coulomb_friction(), decay_drift())

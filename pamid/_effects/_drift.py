@@ -1,13 +1,17 @@
-"""The ``drift`` effect: the load cell's zero moving with time; its definition and injector."""
+"""The ``drift`` effects: the load cell's zero moving with time (a static test: its
+definition and injector), and a free decay's equilibrium moving with time (the effect as a
+model that wraps the oscillator, :class:`DecayDrift`, and its definition)."""
 
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 
-from ._base import Constant, EffectDefinition
+from ._base import Constant, DecayEffect, EffectDefinition
 from ._inject import Injected, _check_form
+from ._wrappers import EffectWrapper
 
 
 def drift() -> EffectDefinition:
@@ -48,3 +52,38 @@ class InjectedDrift(Injected):
         if self.form == "linear":
             return self.N_per_hour * t / 3600.0
         return self.N_per_hour * (1.0 - np.exp(-t / self.time_constant_s))
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class DecayDrift(EffectWrapper):
+    """A free decay about an equilibrium that moves linearly in time, β_eq(t) = β_eq + r·t
+    (a slow leak, a creeping set point, an encoder drifting with temperature): ``theta`` =
+    (θ of the base decay, r in rad/s), ``x`` = (time since the start, s,).
+    ``DecayDrift.wrap(base)``.
+
+    The angle is β(t) = r·t + the base's decay of the displacement from the moving centre,
+    started from β(0) and the rate β̇(0) − r: the base's constants with its
+    ``rate0_rad_s`` lowered by r. Without friction this is the exact solution of
+    J·β̈ + c·β̇ + k·(β − β_eq − r_sp·t) = 0 (a set point moving at r_sp = r, which the arm
+    follows c·r/k behind; β_eq here is the centre at t = 0, not the set point). Around
+    :class:`~pamid._effects._coulomb_friction.CoulombFriction`, the friction's sign
+    follows the rate about the moving centre instead of β̇: exact for r = 0, and the
+    switching instants are off by about r/(ω_n²·amplitude) otherwise. Either sign of r is
+    physical.
+    """
+
+    constants: ClassVar[tuple[Constant, ...]] = (Constant("drift_rad_s", "rad/s"),)
+
+    def predict(self, theta, x):
+        theta_b, r = self.split(theta)
+        rate = self.base.param_names.index("rate0_rad_s")
+        return self.base.predict(theta_b.at[rate].add(-r[0]), x) + r[0] * x[0]
+
+
+def decay_drift() -> DecayEffect:
+    """The ``drift`` effect of a free decay (:class:`DecayDrift`)."""
+    return DecayEffect(
+        "drift", "elapsed_s", "drift_rad_s", DecayDrift.constants[0],
+        "pamid._virtual._decay.simulate_decays (drift_rad_s=)",
+        "An equilibrium that moves with time, β_eq + r·t (a slow leak); either sign.",
+        model=DecayDrift)

@@ -65,7 +65,70 @@ def _unit_x(base: ModelSpec) -> str:
 
 
 @dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
-class InputTransform(ModelSpec):
+class EffectWrapper(ModelSpec):
+    """A model wrapped in one effect: ``theta`` = (θ of ``base``, the effect's constants).
+    A subclass gives :attr:`constants` and ``predict``; :meth:`wrap` makes it with the names,
+    units and bounds of the base and of the effect. The transform effects of a force law
+    (:class:`InputTransform`) and the effects of a free decay (the Coulomb friction,
+    :class:`pamid._effects._coulomb_friction.CoulombFriction`; the drifting equilibrium,
+    :class:`pamid._effects._drift.DecayDrift`) are its subclasses."""
+
+    base: ModelSpec
+
+    #: The effect's constants (:class:`pamid._effects._base.Constant`), in order.
+    constants: ClassVar[tuple] = ()
+
+    @classmethod
+    def wrap(cls, base: ModelSpec, **fields) -> EffectWrapper:
+        """``base`` wrapped in the effect (``fields``: the subclass's own), with the names,
+        units and physical bounds of its constants (bounds that depend on the file, a sensor
+        offset's, are left open: the diagnosis reports a constant past them as not
+        physical). A model without bounds stays without them where the effect's constants
+        have none."""
+        names = (*base.param_names, *(c.name for c in cls.constants))
+        units = dict(base.param_units)
+        units.update({c.name: c.unit.format(x=_unit_x(base), step="kPa")
+                      for c in cls.constants})
+        open_ = all(c.lower == -np.inf and c.upper == np.inf for c in cls.constants)
+        if base.bounds is None and open_:
+            bounds = None
+        else:
+            lower, upper = ((-np.inf,) * base.n_params, (np.inf,) * base.n_params) \
+                if base.bounds is None else base.bounds
+            bounds = ((*lower, *(c.lower for c in cls.constants)),
+                      (*upper, *(c.upper for c in cls.constants)))
+        label = cls.__name__.lower()
+        return cls(base=base, name=f"{base.name}+{label}", param_names=names,
+                   param_units=units, units=dict(base.units), columns=base.columns,
+                   source=f"{base.source}, with {label}", output=base.output,
+                   bounds=bounds, **fields)
+
+    def split(self, theta):
+        """(θ of the base, the effect's constants)."""
+        k = self.base.n_params
+        return theta[..., :k], theta[..., k:]
+
+    @property
+    def program_key(self) -> tuple | None:
+        key = self.base.program_key
+        return None if key is None else (*key, type(self).__qualname__,
+                                         *self._key_fields())
+
+    def _key_fields(self) -> tuple:
+        return ()
+
+    def start(self, x, y, w):
+        """The base model's start; the effect's constants at zero (no effect)."""
+        theta0 = self.base.start(x, y, w)
+        return jnp.concatenate(
+            [theta0, jnp.zeros(theta0.shape[:-1] + (len(self.constants),))], axis=-1)
+
+    def to_x(self, *cols):
+        return self.base.to_x(*cols)
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class InputTransform(EffectWrapper):
     """``base`` with the inputs it sees transformed by an effect: F = F_base(θ; T(x, t, F)),
     ``theta`` = (θ of the base, t of the effect). A subclass (one per effect, beside its
     definition) gives :attr:`constants` and :meth:`transform`, and
@@ -77,11 +140,8 @@ class InputTransform(ModelSpec):
     then skip the Newton steps).
     """
 
-    base: ModelSpec
     implicit: bool = False
 
-    #: The effect's constants (:class:`pamid._effects._base.Constant`), in order.
-    constants: ClassVar[tuple] = ()
     #: Whether :meth:`transform` reads the force (the law is then implicit).
     depends_on_force: ClassVar[bool] = False
 
@@ -93,22 +153,9 @@ class InputTransform(ModelSpec):
 
     @classmethod
     def wrap(cls, base: ModelSpec, *, implicit: bool = False) -> InputTransform:
-        """``base`` wrapped in the effect, with the names, units and physical bounds of its
-        constants (bounds that depend on the file, a sensor offset's, are left open: the
-        diagnosis reports a constant past them as not physical)."""
-        names = (*base.param_names, *(c.name for c in cls.constants))
-        units = dict(base.param_units)
-        units.update({c.name: c.unit.format(x=_unit_x(base), step="kPa")
-                      for c in cls.constants})
-        lower, upper = ((-np.inf,) * base.n_params, (np.inf,) * base.n_params) \
-            if base.bounds is None else base.bounds
-        return cls(base=base, implicit=implicit and cls.depends_on_force,
-                   name=f"{base.name}+{cls.__name__.lower()}", param_names=names,
-                   param_units=units, units=dict(base.units), columns=base.columns,
-                   source=f"{base.source}, with {cls.__name__.lower()}",
-                   output=base.output,
-                   bounds=((*lower, *(c.lower for c in cls.constants)),
-                           (*upper, *(c.upper for c in cls.constants))))
+        """``base`` wrapped in the effect (:meth:`EffectWrapper.wrap`); ``implicit`` only
+        where the transform reads the force."""
+        return super().wrap(base, implicit=implicit and cls.depends_on_force)
 
     def predict(self, theta, x):
         base, io, k = self.base, transform_inputs(self.base), self.base.n_params
@@ -141,19 +188,8 @@ class InputTransform(ModelSpec):
         gf = g(f, theta_b, t, x)
         return f + (gf - jax.lax.stop_gradient(gf)) / (1.0 - jax.lax.stop_gradient(dg))
 
-    @property
-    def program_key(self) -> tuple | None:
-        key = self.base.program_key
-        return None if key is None else (*key, type(self).__qualname__, self.implicit)
-
-    def start(self, x, y, w):
-        """The base model's start; the effect's constants at zero (no effect)."""
-        theta0 = self.base.start(x, y, w)
-        return jnp.concatenate(
-            [theta0, jnp.zeros(theta0.shape[:-1] + (len(self.constants),))], axis=-1)
-
-    def to_x(self, *cols):
-        return self.base.to_x(*cols)
+    def _key_fields(self) -> tuple:
+        return (self.implicit,)
 
 
 @dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
