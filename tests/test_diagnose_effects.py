@@ -223,6 +223,47 @@ def test_a_model_with_effects_is_a_model_the_one_entry_fits(theta31):
     np.testing.assert_allclose(sol.params[0], truth, rtol=1e-6)
 
 
+def test_a_feature_effect_alone_is_a_model_fitted_through_the_one_entry(theta31):
+    """Hysteresis(SAROSI): Sárosi eq. 2.1 with the jump at a reversal, −d·(h0 + h1·p), its
+    columns made by the effect's own features (those the diagnosis puts in its slots), its
+    constants named with their units and the bounds that dissipation sets (h0, h1 ≥ 0)."""
+    from types import SimpleNamespace
+
+    from pamid._effects._hysteresis import Hysteresis
+    from pamid._effects._wrappers import FeatureEffect, LinearTerms
+
+    SAROSI = pamid.engine.get_model("sarosi")
+    model = Hysteresis.wrap(SAROSI)
+    assert isinstance(model, FeatureEffect) and isinstance(model, LinearTerms)
+    assert model.param_names == (*SAROSI.param_names, "h0", "h1")
+    assert model.param_units["h1"] == "N/bar" and model.bounds[0][-2:] == (0.0, 0.0)
+    assert [d.model.__name__ for d in STATIC_EFFECT_DEFINITIONS] == [
+        "Hysteresis", "Temperature", "RelativeTemperature", "Drift", "ViscousDamping",
+        "Transient", "Softening", "Covariate", "Compliance", "SensorOffset"]
+
+    rng = np.random.default_rng(5)
+    n = 300
+    p_kpa = rng.uniform(100.0, 600.0, n)
+    kappa = rng.uniform(0.0, 22.0, n)
+    direction = np.where(rng.uniform(size=n) < 0.5, -1.0, 1.0)
+    # no time order: the jump alone, no slip elements
+    muscle = SimpleNamespace(p_bar=p_kpa / 100.0, file=SimpleNamespace(step_input=None))
+    features = np.column_stack(Hysteresis.features(
+        muscle, {"direction": direction}.__getitem__, None))
+    truth = np.concatenate([theta31, [3.0, 1.5]])
+    x = (*SAROSI.to_x(p_kpa, kappa), features)
+    y = np.asarray(model.predict(jnp.asarray(truth), x))
+    np.testing.assert_allclose(
+        y, np.asarray(SAROSI.predict(jnp.asarray(theta31), x[:-1]))
+        - direction * (3.0 + 1.5 * p_kpa / 100.0), rtol=1e-12)
+    data = pamid.FitData(x=tuple(jnp.asarray(a)[None] for a in x), y=jnp.asarray(y)[None],
+                         w=jnp.ones((1, n)), curve=jnp.zeros((1, n), jnp.int32))
+    sol = pamid.engine.least_squares(model, data, solver="levenberg-marquardt",
+                                     theta0=truth[None] * 1.02, max_steps=200)
+    assert sol.converged[0]
+    np.testing.assert_allclose(sol.params[0], truth, rtol=1e-6)
+
+
 def test_a_decay_effect_is_a_model_that_wraps_the_oscillator():
     """The free decays' effects wrap the linear oscillator as the static effects wrap a
     force law: the decay diagnosis's model is DecayDrift(CoulombFriction(Trajectory)), in

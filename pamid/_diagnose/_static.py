@@ -455,7 +455,7 @@ class StaticProblem:
         self.col_bounds: list[tuple[float, float]] = []
         for d in STATIC_EFFECT_DEFINITIONS:
             for name, covariate, consts in d.members(self.file):
-                if d.model is not None:
+                if d.transform:
                     cols, tr = (), slot[d.name]
                 else:
                     cols, tr = tuple(range(col, col + len(consts))), None
@@ -560,10 +560,7 @@ class StaticProblem:
             if e.transform is not None:
                 continue
             g = self.grid_value[e.name][i] if e.grid is not None else None
-            if e.definition.family is not None:
-                cols += e.definition.features(m, col, g, e)
-            else:
-                cols += e.definition.features(m, col, g)
+            cols += e.definition.features(m, col, g, e)
         return np.column_stack(cols) if cols else np.zeros((len(f), 0))
 
     def effect(self, name: str) -> Effect:

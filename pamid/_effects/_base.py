@@ -3,11 +3,14 @@
 An :class:`EffectDefinition` says everything the diagnosis needs to know of one effect that
 a fitted force law F_model(θ; p, x) (Sárosi eq. 2.1, Cullinan eq. 3, any
 :class:`~pamid.ForceModel`) may lack: its name, the covariates it needs, its constants with
-units and physical bounds, how it changes the model — feature columns added to the force
-(the constants enter linearly) or a transform of the model's inputs (the constants enter
-the force law itself) — its physical reason and source (the docstring of its builder), and
-the injector of the virtual bench that hides it in data. Each effect is one module of this
-package, its definition beside its injector (``_hysteresis.py``, ``_temperature.py``, …);
+units and physical bounds, how it changes the model — its ``model``, a class that wraps
+the force law: feature columns added to the force (a
+:class:`~pamid._effects._wrappers.FeatureEffect`, the constants entering linearly) or a
+transform of the model's inputs (an :class:`~pamid._effects._wrappers.InputTransform`,
+the constants entering the force law itself) — its physical reason and source (the
+docstring of its builder), and the injector of the virtual bench that hides it in data.
+Each effect is one module of this package, its definition beside its injector
+(``_hysteresis.py``, ``_temperature.py``, …);
 :data:`pamid._effects._definitions.STATIC_EFFECT_DEFINITIONS` is the registry that
 :class:`pamid._diagnose._static.StaticProblem` reads, one line per effect, and
 :data:`~pamid._effects._definitions.DECAY_EFFECT_DEFINITIONS` the same for free decays
@@ -39,6 +42,7 @@ import numpy as np
 import pandas as pd
 
 from .._units import KPA_PER_BAR, per_l0
+from ._wrappers import InputTransform
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,12 +157,11 @@ class EffectDefinition:
             a tuple): an ``Injected*`` class of :mod:`pamid._effects._inject` works in both
             protocols' ``effects``; a protocol field names where that protocol has its own.
             :attr:`injectors` gives them as a tuple.
-        features: ``features(muscle, col, grid_value) -> list of columns`` (N per unit of
-            each constant); ``col(name)`` reads a covariate (clamped to a fold's range).
-        model: a transform effect as a model that wraps its base (an
-            :class:`~pamid._effects._wrappers.InputTransform` subclass in the effect's
-            module: the inputs as the muscle feels them); None for a feature effect, whose
-            columns a :class:`~pamid._effects._wrappers.LinearTerms` adds.
+        model: the effect as a model that wraps its base, a class in the effect's module:
+            for a transform effect an :class:`~pamid._effects._wrappers.InputTransform`
+            subclass (the inputs as the muscle feels them), for a feature effect a
+            :class:`~pamid._effects._wrappers.FeatureEffect` subclass, whose
+            :meth:`features` make its columns.
         grid: a constant chosen over ``grid_values(file, muscle)`` (see the module).
         applies: ``applies(file) -> bool``, beyond having its covariates.
         check: ``check(values, file, muscle) -> message or None``: a physical condition
@@ -181,8 +184,7 @@ class EffectDefinition:
     covariates: tuple[str, ...]
     constants: tuple[Constant, ...]
     injector: str | tuple[str, ...]
-    features: Callable | None = None
-    model: type | None = None
+    model: type
     grid: Constant | None = None
     grid_values: Callable | None = None
     applies: Callable | None = None
@@ -193,9 +195,20 @@ class EffectDefinition:
     derived: Callable | None = None
 
     @property
+    def transform(self) -> bool:
+        """Whether the effect transforms the model's inputs (else it adds columns)."""
+        return issubclass(self.model, InputTransform)
+
+    @property
     def implicit(self) -> bool:
         """Whether the transform reads the force: the force law becomes implicit."""
-        return self.model is not None and self.model.depends_on_force
+        return self.transform and self.model.depends_on_force
+
+    def features(self, muscle: MuscleContext, col: Callable, grid_value=None,
+                 effect: Effect | None = None) -> list:
+        """A feature effect's columns for one muscle
+        (:meth:`pamid._effects._wrappers.FeatureEffect.features`)."""
+        return self.model.features(muscle, col, grid_value, effect)
 
     @property
     def injectors(self) -> tuple[str, ...]:

@@ -4,12 +4,14 @@ library cannot model by what it depends on; its definition and injector."""
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 
 from ._base import Constant, EffectDefinition, FileContext
 from ._basis import legendre_basis, scaled
 from ._inject import Injected, _check_form
+from ._wrappers import FeatureEffect
 
 #: Largest Legendre degree of the ``covariate`` family.
 COVARIATE_DEGREE = 3
@@ -29,10 +31,20 @@ def _covariate_family(file: FileContext):
     return out
 
 
-def _covariate_features(m, col, g, effect):
-    lo, hi = m.file.ranges[effect.covariate]
-    basis = legendre_basis(scaled(col(effect.covariate), lo, hi), COVARIATE_DEGREE)
-    return [basis[int(name[1:]) - 1] for name in effect.param_names]
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Covariate(FeatureEffect):
+    """A force law plus a smooth function of one covariate z: F_base + Σ_k b_k·P_k(z), z
+    scaled to [−1, 1] over the file (:func:`covariate`); its constants are a file's (the
+    degrees its covariate allows: ``Covariate.wrap(base, constants)``), and its columns
+    those of one member of the family (``effect``)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = ()
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        lo, hi = muscle.file.ranges[effect.covariate]
+        basis = legendre_basis(scaled(col(effect.covariate), lo, hi), COVARIATE_DEGREE)
+        return [basis[int(name[1:]) - 1] for name in effect.param_names]
 
 
 def covariate() -> EffectDefinition:
@@ -46,7 +58,7 @@ def covariate() -> EffectDefinition:
     return EffectDefinition(
         name="covariate", covariates=(), constants=(),
         injector="pamid._effects._covariate.InjectedCovariate",
-        features=_covariate_features, family=_covariate_family)
+        model=Covariate, family=_covariate_family)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -28,7 +28,7 @@ STATIC_EFFECT_DEFINITIONS: tuple[EffectDefinition, ...] = (
 def transforms() -> tuple[EffectDefinition, ...]:
     """The effects that transform the model's inputs, in the order of their constants in
     the lanes' parameter layout."""
-    return tuple(d for d in STATIC_EFFECT_DEFINITIONS if d.model is not None)
+    return tuple(d for d in STATIC_EFFECT_DEFINITIONS if d.transform)
 
 
 #: Every candidate effect of a free-decay diagnosis; their order is that of their constants

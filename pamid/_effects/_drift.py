@@ -11,7 +11,21 @@ import numpy as np
 
 from ._base import Constant, DecayEffect, EffectDefinition
 from ._inject import Injected, _check_form
-from ._wrappers import EffectWrapper
+from ._wrappers import EffectWrapper, FeatureEffect
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Drift(FeatureEffect):
+    """A force law with the load cell's zero drifting: F_base + δ1·t + δ2·t², t in hours
+    from the start of the muscle's test (:func:`drift`)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (Constant("delta1", "N/h"),
+                                                 Constant("delta2", "N/h²"))
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        h = col("elapsed_s") / 3600.0
+        return [h, h**2]
 
 
 def drift() -> EffectDefinition:
@@ -21,14 +35,9 @@ def drift() -> EffectDefinition:
     cell's datasheet states a zero drift per hour and per kelvin); it is additive and does
     not depend on the load. Injector: :class:`pamid._effects._drift.InjectedDrift`.
     """
-    def features(m, col, g):
-        h = col("elapsed_s") / 3600.0
-        return [h, h**2]
-
     return EffectDefinition(
-        name="drift", covariates=("elapsed_s",),
-        constants=(Constant("delta1", "N/h"), Constant("delta2", "N/h²")),
-        injector="pamid._effects._drift.InjectedDrift", features=features)
+        name="drift", covariates=("elapsed_s",), constants=Drift.constants,
+        injector="pamid._effects._drift.InjectedDrift", model=Drift)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -4,11 +4,13 @@ elements with memory; its definition and its injectors."""
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 
 from ._base import Constant, EffectDefinition, FileContext, MuscleContext
 from ._inject import _P_REF_BAR, Injected, _check_form
+from ._wrappers import FeatureEffect
 
 #: Thresholds of the hysteresis' slip elements, as shares of the range of the moving input
 #: over the muscle's rows: an element of share q slides once the input has moved by 2q of
@@ -75,13 +77,24 @@ def _hysteresis_half_height(file: FileContext):
     return [("half_height_at_3bar", "N", weights)]
 
 
-def _hysteresis_features(m, col, g):
-    d = col("direction")
-    out = [-d, -d * m.p_bar]
-    if _slip_labels(m.file):
-        for s in slip_features(m).T:
-            out += [-s, -s * m.p_bar]
-    return out
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Hysteresis(FeatureEffect):
+    """A force law with friction hysteresis: F_base − d·(h0 + h1·p) − Σ_i (h0_i + h1_i·p)·ŝ_i,
+    d the direction and ŝ_i the slip elements' deflections, where the rows have a time
+    order (:func:`hysteresis`; the slip elements' constants join :attr:`constants` in such
+    a file: ``Hysteresis.wrap(base, constants)``)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (Constant("h0", "N", lower=0.0, held=True),
+                                                 Constant("h1", "N/bar", lower=0.0, held=True))
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        d = col("direction")
+        out = [-d, -d * muscle.p_bar]
+        if _slip_labels(muscle.file):
+            for s in slip_features(muscle).T:
+                out += [-s, -s * muscle.p_bar]
+        return out
 
 
 def hysteresis() -> EffectDefinition:
@@ -111,13 +124,11 @@ def hysteresis() -> EffectDefinition:
     """
     return EffectDefinition(
         name="hysteresis", covariates=("direction",),
-        constants=(Constant("h0", "N", lower=0.0, held=True),
-                   Constant("h1", "N/bar", lower=0.0, held=True)),
+        constants=Hysteresis.constants, model=Hysteresis,
         injector=("pamid._effects._hysteresis.InjectedHysteresis",
                   "pamid._effects._hysteresis.InjectedMaxwellSlip",
                   "pamid._virtual._isometric.IsometricProtocol.hysteresis_N_at_3_bar",
                   "pamid._virtual._sweeps.SarosiProtocol.hysteresis_N_per_bar"),
-        features=_hysteresis_features,
         more=_slip_constants,
         derived=_hysteresis_half_height,
     )

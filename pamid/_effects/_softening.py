@@ -3,12 +3,30 @@ definition (its injectors are fields of the virtual protocols)."""
 
 from __future__ import annotations
 
+import dataclasses
+from typing import ClassVar
+
 import numpy as np
 
 from ._base import Constant, EffectDefinition
+from ._wrappers import FeatureEffect
 
 #: Scales r (in repeats) of the ``softening`` grid.
 SOFTENING_GRID = (0.3, 1.0, 3.0, 10.0)
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Softening(FeatureEffect):
+    """A force law that loses force from repeat to repeat: F_base − s·(1 − e^(−repeat/r))·
+    F_model, F_model the baseline fit and r chosen over a grid (:func:`softening`)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (
+        Constant("s", "1", lower=0.0, upper=1.0, meaning="share of force lost"),)
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        repeat = muscle.frame["repeat"].to_numpy(float)
+        return [-(1.0 - np.exp(-repeat / grid_value)) * muscle.baseline_N]
 
 
 def softening() -> EffectDefinition:
@@ -26,11 +44,9 @@ def softening() -> EffectDefinition:
     """
     return EffectDefinition(
         name="softening", covariates=("repeat",),
-        constants=(Constant("s", "1", lower=0.0, upper=1.0, meaning="share of force lost"),),
+        constants=Softening.constants, model=Softening,
         injector=("pamid._virtual._isometric.IsometricProtocol.softening",
                   "pamid._virtual._sweeps.SarosiProtocol.softening"),
-        features=lambda m, col, r: [-(1.0 - np.exp(-m.frame["repeat"].to_numpy(float) / r))
-                                    * m.baseline_N],
         grid=Constant("r", "repeats", lower=0.0),
         grid_values=lambda f, m: np.asarray(SOFTENING_GRID),
         applies=lambda f: f.max_repeat >= 1,

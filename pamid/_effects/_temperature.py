@@ -4,12 +4,28 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 
 from .._units import KPA_PER_BAR
 from ._base import Constant, EffectDefinition
 from ._inject import Injected, _check_form
+from ._wrappers import FeatureEffect
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Temperature(FeatureEffect):
+    """A force law with a force that changes with the temperature: F_base + (τ0 + τ1·p)·
+    (T − T̄), T̄ the file's mean temperature (:func:`temperature`)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (Constant("tau0", "N/K"),
+                                                 Constant("tau1", "N/(bar·K)"))
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        dt = col("temperature_C") - muscle.file.temperature_mean_C
+        return [dt, dt * muscle.p_bar]
 
 
 def temperature() -> EffectDefinition:
@@ -23,14 +39,26 @@ def temperature() -> EffectDefinition:
     ``temperature_relative``, its other form. Injector:
     :class:`pamid._effects._temperature.InjectedTemperature`.
     """
-    def features(m, col, g):
-        dt = col("temperature_C") - m.file.temperature_mean_C
-        return [dt, dt * m.p_bar]
-
     return EffectDefinition(
-        name="temperature", covariates=("temperature_C",),
-        constants=(Constant("tau0", "N/K"), Constant("tau1", "N/(bar·K)")),
-        injector="pamid._effects._temperature.InjectedTemperature", features=features)
+        name="temperature", covariates=("temperature_C",), constants=Temperature.constants,
+        injector="pamid._effects._temperature.InjectedTemperature", model=Temperature)
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class RelativeTemperature(FeatureEffect):
+    """A force law whose force is scaled with the temperature: F_base + F_model·(α0 + α1·p)·
+    (T − T0), F_model the baseline fit and T0 chosen over a grid
+    (:func:`temperature_relative`)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (
+        Constant("alpha1", "1/(bar·K)",
+                 meaning="change per bar of the force's relative change per kelvin"),
+        Constant("alpha0", "1/K", meaning="relative change of the force per kelvin"))
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        dt = col("temperature_C") - grid_value
+        return [muscle.baseline_N * dt * muscle.p_bar, muscle.baseline_N * dt]
 
 
 #: Reference temperatures T0 of ``temperature_relative``, as shares of the file's range of
@@ -86,16 +114,11 @@ def temperature_relative() -> EffectDefinition:
     form of ``temperature`` (additive, N/K): the two are never selected together.
     Injector: :class:`pamid._effects._temperature.InjectedRelativeTemperature`.
     """
-    def features(m, col, t0):
-        dt = col("temperature_C") - t0
-        return [m.baseline_N * dt * m.p_bar, m.baseline_N * dt]
-
     return EffectDefinition(
         name="temperature_relative", covariates=("temperature_C",),
-        constants=(Constant("alpha1", "1/(bar·K)",
-                            meaning="change per bar of the force's relative change per kelvin"),
-                   Constant("alpha0", "1/K", meaning="relative change of the force per kelvin")),
-        injector="pamid._effects._temperature.InjectedRelativeTemperature", features=features,
+        constants=RelativeTemperature.constants,
+        injector="pamid._effects._temperature.InjectedRelativeTemperature",
+        model=RelativeTemperature,
         grid=Constant("T0_C", "°C", lower=ABSOLUTE_ZERO_C,
                       meaning="the temperature at which the force law holds"),
         grid_values=_relative_temperature_t0,

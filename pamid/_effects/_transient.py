@@ -3,9 +3,13 @@ definition (its injectors are fields of the virtual protocols)."""
 
 from __future__ import annotations
 
+import dataclasses
+from typing import ClassVar
+
 import numpy as np
 
 from ._base import Constant, EffectDefinition
+from ._wrappers import FeatureEffect
 
 #: Time constants of the ``transient`` grid, as multiples of the median sample interval.
 TRANSIENT_GRID = 2.0 ** (np.arange(-4.0, 13.0) / 2.0)
@@ -55,6 +59,20 @@ def _transient_check(values, file, muscle):
     return None
 
 
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class Transient(FeatureEffect):
+    """A force law with the force relaxing after every step of the moving input: F_base +
+    g·Σ_k Δu_k·e^(−(t − t_k)/τ), τ chosen over a grid (:func:`transient`)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (
+        Constant("g", "N/{step}",
+                 meaning="relaxation per unit of step, either sign (see the text)"),)
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        return [_relaxation(muscle.steps, muscle.time_s, muscle.trial, grid_value)]
+
+
 def transient() -> EffectDefinition:
     """Force relaxation after each step of the moving input: g·Σ_k Δu_k·e^(−(t − t_k)/τ).
 
@@ -84,12 +102,10 @@ def transient() -> EffectDefinition:
     """
     return EffectDefinition(
         name="transient", covariates=("time_since_step_s", "elapsed_s"),
-        constants=(Constant("g", "N/{step}",
-                            meaning="relaxation per unit of step, either sign (see the text)"),),
+        constants=Transient.constants, model=Transient,
         injector=("pamid._virtual._isometric.IsometricProtocol.transient_N_per_kPa",
                   "pamid._virtual._sweeps.SarosiProtocol.transient_N_per_pct"),
         check=_transient_check,
-        features=lambda m, col, tau: [_relaxation(m.steps, m.time_s, m.trial, tau)],
         grid=Constant("tau_s", "s", lower=0.0), grid_values=_transient_grid,
         applies=lambda f: f.step_input is not None,
     )

@@ -4,9 +4,23 @@ and injector."""
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 from ._base import Constant, EffectDefinition
 from ._inject import Injected
+from ._wrappers import FeatureEffect
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class ViscousDamping(FeatureEffect):
+    """A force law with a force opposing the rate of contraction: F_base − g·v
+    (:func:`viscous_damping`)."""
+
+    constants: ClassVar[tuple[Constant, ...]] = (Constant("g", "N·s/{x}", lower=0.0),)
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None):
+        return [-col(muscle.speed)]
 
 
 def viscous_damping() -> EffectDefinition:
@@ -18,9 +32,9 @@ def viscous_damping() -> EffectDefinition:
     """
     return EffectDefinition(
         name="viscous_damping", covariates=("speed_mm_s", "speed_pct_s"),
-        constants=(Constant("g", "N·s/{x}", lower=0.0),),
+        constants=ViscousDamping.constants,
         injector="pamid._effects._viscous_damping.InjectedViscousDamping",
-        features=lambda m, col, g: [-col(m.speed)],
+        model=ViscousDamping,
         applies=lambda f: len(f.spec.columns) < 3,  # Cullinan with G has it already
     )
 

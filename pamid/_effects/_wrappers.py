@@ -12,9 +12,11 @@ units and physical bounds. There are two kinds:
   that depends on the force makes the law implicit; the force is then the fixed point,
   found by Newton from the base model.
 - A **feature** effect (the hysteresis, the temperature, a drift, …) adds columns to the
-  force, its constants their gains: :class:`LinearTerms` wraps a model in ``n_slots``
-  slots, each a feature column (the last input, made by the effect's definition from the
-  file) with its gain::
+  force, its constants their gains: one effect is a :class:`FeatureEffect` subclass in
+  its module, whose ``features`` make its columns from a muscle's rows
+  (``Hysteresis.wrap(base)``); :class:`LinearTerms` wraps a model in ``n_slots``
+  anonymous slots, each a feature column (the last input) with its gain, to hold the
+  columns of several effects::
 
       F = F_inner(θ; x) + Σ_j φ_j·f_j
 
@@ -71,7 +73,8 @@ class EffectWrapper(ModelSpec):
     units and bounds of the base and of the effect. The transform effects of a force law
     (:class:`InputTransform`) and the effects of a free decay (the Coulomb friction,
     :class:`pamid._effects._coulomb_friction.CoulombFriction`; the drifting equilibrium,
-    :class:`pamid._effects._drift.DecayDrift`) are its subclasses."""
+    :class:`pamid._effects._drift.DecayDrift`) are its subclasses; a feature effect, whose
+    constants may depend on the file, is a :class:`FeatureEffect`."""
 
     base: ModelSpec
 
@@ -233,7 +236,7 @@ class LinearTerms(ModelSpec):
     @property
     def program_key(self) -> tuple | None:
         key = self.base.program_key
-        return None if key is None else (*key, "LinearTerms", self.n_slots)
+        return None if key is None else (*key, type(self).__qualname__, self.n_slots)
 
     def start(self, x, y, w):
         """The base model's start; every gain at zero (no effect)."""
@@ -243,3 +246,46 @@ class LinearTerms(ModelSpec):
 
     def to_x(self, *cols):
         return (*self.base.to_x(*cols[:-1]), cols[-1])
+
+
+@dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
+class FeatureEffect(LinearTerms):
+    """One feature effect as a model: F = F_base(θ; x) + Σ_j φ_j·f_j, the f_j the effect's
+    columns (the last input, made from a muscle's rows by :meth:`features`), the φ_j its
+    constants, with their names, units and physical bounds. A subclass, one per feature
+    effect beside its definition (``Hysteresis`` in ``_hysteresis.py``, ``Transient`` in
+    ``_transient.py``, …), gives :meth:`features` and :attr:`constants`. Made by
+    :meth:`wrap`; :class:`LinearTerms` is the same with anonymous slots, which hold the
+    columns of every effect of a diagnosis's candidate sets in one compiled program."""
+
+    #: The effect's constants (:class:`pamid._effects._base.Constant`) that every file has,
+    #: in the order of its columns; a file may add more (the hysteresis' slip elements).
+    constants: ClassVar[tuple] = ()
+
+    @staticmethod
+    def features(muscle, col, grid_value, effect=None) -> list:
+        """The effect's columns for one muscle's rows (N per unit of each constant):
+        ``muscle`` a :class:`pamid._effects._base.MuscleContext`, ``col(name)`` reads a
+        covariate (clamped to a fold's range), ``grid_value`` the constant chosen over a
+        grid (or None), ``effect`` the :class:`~pamid._effects._base.Effect` where the
+        columns depend on the member of a family."""
+        raise NotImplementedError("a feature effect defines its features")
+
+    @classmethod
+    def wrap(cls, base: ModelSpec, constants: tuple | None = None) -> FeatureEffect:
+        """``base`` wrapped in the effect, its constants :attr:`constants` or those of a
+        file (``EffectDefinition.members``), each with its unit (``{x}`` the contraction's
+        unit, ``{step}`` kPa) and bounds."""
+        consts = cls.constants if constants is None else tuple(constants)
+        names = (*base.param_names, *(c.name for c in consts))
+        units = dict(base.param_units)
+        units.update({c.name: c.unit.format(x=_unit_x(base), step="kPa") for c in consts})
+        lower, upper = ((-np.inf,) * base.n_params, (np.inf,) * base.n_params) \
+            if base.bounds is None else base.bounds
+        label = cls.__name__.lower()
+        return cls(base=base, n_slots=len(consts), name=f"{base.name}+{label}",
+                   param_names=names, param_units=units, units=dict(base.units),
+                   columns=(*base.columns, f"{label}_features"),
+                   source=f"{base.source}, with {label}", output=base.output,
+                   bounds=((*lower, *(c.lower for c in consts)),
+                           (*upper, *(c.upper for c in consts))))
