@@ -176,8 +176,11 @@ def least_squares(
         raise ValueError("outputs are given by pamid's own loop (bounds, a mask, or "
                          "solver=ProjectedLevenbergMarquardt())")
     data = _weighted(data, weights)
-    solver.check(model)
-    kernel = solver.kernel(model)
+    # Through the class: an equinox module binds a method anew on every access (a
+    # BoundMethod module, about 85 µs each here), which was a third of a warm one-muscle fit.
+    kind = type(solver)
+    kind.check(solver, model)
+    kernel = kind.kernel(solver, model)
     fast = model.kernels
     budget = max_steps
     stats = None
@@ -707,7 +710,7 @@ def first_solve(spec: ModelSpec, data: FitData, *, solver: str, starts: int, the
     out = None
     if linear:
         out = _linear_fit(spec, data)
-    elif theta0 is None and starts > 1 and solver.kernel(spec) is None:
+    elif theta0 is None and starts > 1 and type(solver).kernel(solver, spec) is None:
         out = _multi_start(spec, data, solver, starts, max_steps, rtol, atol, *bounds)
     if out is not None:
         return out, None, linear, True
