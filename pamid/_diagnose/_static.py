@@ -658,8 +658,17 @@ class StaticProblem:
         source = self._shared_arrays()
         # Lanes with and without an implicit transform (the compliance) are two models, two
         # calls of the one entry: the implicit force law costs four Newton steps that the
-        # other lanes do not need.
-        lane_comp = implicit[lanes_set]
+        # other lanes do not need. In a large batch, the lanes of sets with few columns also
+        # run with fewer slots than the widest set's (the hysteresis with its slip elements
+        # has 10): the normal equations grow with the square of the constants, and every
+        # lane carrying 16 slots made the first selection step of 100 muscles 1.6 times as
+        # slow. A small diagnosis keeps one width: its time is the compiling.
+        width = np.full(len(sets), n_slots)
+        if not _small(m, n):
+            width = np.array([min(n_slots, 1 << (max(MIN_SLOTS, len(c)) - 1).bit_length())
+                              for c in slots])
+        lane_kind = [(bool(implicit[i]), int(width[i])) for i in lanes_set]
+        p_full = self.spec.n_params + n_tr + n_slots
         # The model's constants start at the baseline's; those it holds on a bound are held
         # there. The others are kept within their bounds inside the solve (pamid's own
         # Levenberg–Marquardt with projected bounds): a constant a refit pushes onto its
@@ -681,17 +690,21 @@ class StaticProblem:
         size = items_per_call(n_samples=n, max_lane_samples=CALL_LANE_SAMPLES,
                               max_lanes=CALL_LANES)
 
-        def refit(flag, sel):
+        def refit(kind, sel):
+            flag, ns = kind
+            p = p_full - n_slots + ns
             view = LaneView(source, (lanes_muscle[sel], lanes_fold[sel],
-                                     cols[lanes_set[sel]], slotmask[lanes_set[sel]]),
+                                     cols[lanes_set[sel], :ns], slotmask[lanes_set[sel], :ns]),
                             lane_data)
             sol = least_squares(
-                with_effects(self.spec, flag, n_slots), view, solver=REFIT_SOLVER,
-                theta0=theta0[sel], mask=mask[sel], bounds=(lower[sel], upper[sel]),
+                with_effects(self.spec, flag, ns), view, solver=REFIT_SOLVER,
+                theta0=theta0[sel, :p], mask=mask[sel, :p],
+                bounds=(lower[sel, :p], upper[sel, :p]),
                 max_steps=MAX_ITER, outputs=("prediction",), chunk=size)
-            return sol.params, sol.sse, sol.prediction, sol.result, sol.decrement, sol.free
+            return (_pad(sol.params, p_full), sol.sse, sol.prediction, sol.result,
+                    sol.decrement, _pad(sol.free, p_full))
 
-        params, sse, pred, result, decrement, free = _by_kind(lane_comp, refit)
+        params, sse, pred, result, decrement, free = _by_kind(lane_kind, refit)
         # Each lane's residual on every row (data − model, the held-out rows too), and its
         # held-out squared error.
         w = np.asarray(self.data.w)
@@ -704,12 +717,17 @@ class StaticProblem:
         # (JᵀJ)⁻¹ and the numerical rank are asked of the fits to all data only (the
         # intervals, the BIC); the held-out fits need neither.
         full_lanes = np.flatnonzero(lanes_fold == 0)
-        stats = _by_kind(
-            lane_comp[full_lanes], lambda flag, sel: _run_lanes(
+
+        def statistics(kind, sel):
+            flag, ns = kind
+            lanes, p = full_lanes[sel], p_full - n_slots + ns
+            jtj_inv, rank = _run_lanes(
                 _lane_statistics_jit, "diagnose_lane_statistics", self.spec, flag, source,
-                lanes_muscle[full_lanes[sel]], cols[lanes_set[full_lanes[sel]]],
-                slotmask[lanes_set[full_lanes[sel]]], free[full_lanes[sel]],
-                params[full_lanes[sel]]))
+                lanes_muscle[lanes], cols[lanes_set[lanes], :ns],
+                slotmask[lanes_set[lanes], :ns], free[lanes, :p], params[lanes, :p])
+            return _pad(_pad(jtj_inv, p_full), p_full, axis=-2), rank
+
+        stats = _by_kind([lane_kind[i] for i in full_lanes], statistics)
         jtj_inv = np.zeros((len(lanes_set), *stats[0].shape[1:]))
         rank = np.zeros(len(lanes_set), int)
         jtj_inv[full_lanes], rank[full_lanes] = stats
@@ -836,22 +854,31 @@ CALL_LANES = 64
 CALL_LANE_SAMPLES = 64 * 1024
 
 
-def _by_kind(implicit, run):
-    """``run(flag, sel)`` for the lanes ``sel`` without (flag False) and with (True) an
-    implicit transform, the outputs put back in lane order: two compiled functions, since
-    the implicit force law costs Newton steps the other lanes do not need."""
+def _by_kind(kinds, run):
+    """``run(kind, sel)`` for the lanes ``sel`` of each kind (a lane's model: without or
+    with an implicit transform, and its number of slots), the outputs put back in lane
+    order: a compiled function per kind, since the implicit force law costs Newton steps
+    and the slots normal equations that the other lanes do not need."""
     outs = None
-    for flag in (False, True):
-        sel = np.flatnonzero(implicit == flag)
-        if len(sel) == 0:
-            continue
-        out = run(flag, sel)
+    kinds = list(kinds)
+    for kind in sorted(set(kinds)):
+        sel = np.flatnonzero([k == kind for k in kinds])
+        out = run(kind, sel)
         if outs is None:
-            outs = [np.zeros((len(implicit), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
+            outs = [np.zeros((len(kinds), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
                     for a in out]
         for arr, a in zip(outs, out, strict=True):
             arr[sel] = np.asarray(a)
     return outs
+
+
+def _pad(a, size: int, axis: int = -1) -> np.ndarray:
+    """``a`` with zeros appended along ``axis`` up to ``size``: a lane run with fewer slots
+    than the batch's, its slots past its own held at zero."""
+    a = np.asarray(a)
+    width = [(0, 0)] * a.ndim
+    width[axis] = (0, size - a.shape[axis])
+    return np.pad(a, width)
 
 
 def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
