@@ -667,7 +667,7 @@ class StaticProblem:
         if not _small(m, n):
             width = np.array([min(n_slots, 1 << (max(MIN_SLOTS, len(c)) - 1).bit_length())
                               for c in slots])
-        lane_kind = [(bool(implicit[i]), int(width[i])) for i in lanes_set]
+        lane_kind = np.stack([implicit[lanes_set], width[lanes_set]], axis=1).astype(int)
         p_full = self.spec.n_params + n_tr + n_slots
         # The model's constants start at the baseline's; those it holds on a bound are held
         # there. The others are kept within their bounds inside the solve (pamid's own
@@ -727,7 +727,7 @@ class StaticProblem:
                 slotmask[lanes_set[lanes], :ns], free[lanes, :p], params[lanes, :p])
             return _pad(_pad(jtj_inv, p_full), p_full, axis=-2), rank
 
-        stats = _by_kind([lane_kind[i] for i in full_lanes], statistics)
+        stats = _by_kind(lane_kind[full_lanes], statistics)
         jtj_inv = np.zeros((len(lanes_set), *stats[0].shape[1:]))
         rank = np.zeros(len(lanes_set), int)
         jtj_inv[full_lanes], rank[full_lanes] = stats
@@ -855,15 +855,15 @@ CALL_LANE_SAMPLES = 64 * 1024
 
 
 def _by_kind(kinds, run):
-    """``run(kind, sel)`` for the lanes ``sel`` of each kind (a lane's model: without or
-    with an implicit transform, and its number of slots), the outputs put back in lane
-    order: a compiled function per kind, since the implicit force law costs Newton steps
-    and the slots normal equations that the other lanes do not need."""
+    """``run((implicit, slots), sel)`` for the lanes ``sel`` of each kind (``kinds``: per
+    lane, whether its model has an implicit transform, and its number of slots), the
+    outputs put back in lane order: a compiled function per kind, since the implicit force
+    law costs Newton steps and the slots normal equations that the other lanes do not
+    need."""
     outs = None
-    kinds = list(kinds)
-    for kind in sorted(set(kinds)):
-        sel = np.flatnonzero([k == kind for k in kinds])
-        out = run(kind, sel)
+    for kind in np.unique(kinds, axis=0):
+        sel = np.flatnonzero(np.all(kinds == kind, axis=1))
+        out = run((bool(kind[0]), int(kind[1])), sel)
         if outs is None:
             outs = [np.zeros((len(kinds), *np.shape(a)[1:]), dtype=np.asarray(a).dtype)
                     for a in out]

@@ -140,7 +140,10 @@ class MuscleContext:
 
     @property
     def p_bar(self) -> np.ndarray:
-        return self.frame["pressure_kPa"].to_numpy(float) / KPA_PER_BAR
+        """The pressure in bar (computed once: every fold's features read it)."""
+        if "p_bar" not in self.memo:
+            self.memo["p_bar"] = self.frame["pressure_kPa"].to_numpy(float) / KPA_PER_BAR
+        return self.memo["p_bar"]
 
 
 @dataclasses.dataclass(frozen=True)
