@@ -54,14 +54,40 @@ JAX arrays), and check less than the workflows do. ::
   feature columns and folds), whose ``evaluate(sets)`` refits candidate sets (set × muscle
   × fold, one batched Levenberg–Marquardt call of at most :data:`DIAGNOSIS_MAX_STEPS`
   steps per lane).
+* Effects as models that wrap a model (each one class in its effect's module): a force law
+  with a transform of its inputs, :class:`Compliance` (F = F_base(p, κ + c·F), solved as a
+  fixed point) and :class:`SensorOffset` (F = F_base(p + δ, κ)), subclasses of
+  :class:`InputTransform`; with the columns of a feature effect, :class:`Hysteresis`,
+  :class:`Temperature`, :class:`RelativeTemperature`, :class:`Drift`,
+  :class:`ViscousDamping`, :class:`Transient`, :class:`Softening`, :class:`Covariate`,
+  subclasses of :class:`FeatureEffect` (their ``features`` make the columns, the last
+  input); :class:`LinearTerms`, anonymous slots for several effects' columns;
+  :func:`with_effects`, the model a diagnosis refits (every transform, then the slots); a
+  free decay's :class:`CoulombFriction` and :class:`DecayDrift`, subclasses of
+  :class:`EffectWrapper` around the linear oscillator, and :func:`decay_model`, the
+  oscillator in both. Each is a :class:`ModelSpec`: ``Compliance.wrap(get_model("sarosi"),
+  implicit=True)`` is fitted by :func:`least_squares`.
 * Pooled models: the hierarchical Bayesian Bolen law of ``pamid.compare_pooled(...,
   bayes=key)`` on stacked data sets (:func:`fit_hierarchical`, one ensemble each) and a new
   muscle's posterior predictive interval (:func:`hierarchical_predictive`).
 """
 
 from ._data._curves import Curves, find_curves
+from ._decays._coulomb import decay_model
 from ._diagnose._static import MAX_ITER as DIAGNOSIS_MAX_STEPS
 from ._diagnose._static import StaticProblem as StaticDiagnosisProblem
+from ._effects._compliance import Compliance
+from ._effects._coulomb_friction import CoulombFriction
+from ._effects._covariate import Covariate
+from ._effects._drift import DecayDrift, Drift
+from ._effects._hysteresis import Hysteresis
+from ._effects._model import with_effects
+from ._effects._sensor_offset import SensorOffset
+from ._effects._softening import Softening
+from ._effects._temperature import RelativeTemperature, Temperature
+from ._effects._transient import Transient
+from ._effects._viscous_damping import ViscousDamping
+from ._effects._wrappers import EffectWrapper, FeatureEffect, InputTransform, LinearTerms
 from ._fit._correlated import (
     CLUSTER_KINDS,
     ar1_noise,
@@ -118,8 +144,11 @@ __all__ = [
     # Sampling.
     "AUTO_SAMPLER", "DE_FRACTION", "StackedSampler", "ensemble_log_prob", "initial_walkers",
     "integrated_time", "numpy_log_prob", "walker_log_prob",
-    # Diagnosis.
-    "DIAGNOSIS_MAX_STEPS", "StaticDiagnosisProblem",
+    # Diagnosis, and the effects as models that wrap a model.
+    "DIAGNOSIS_MAX_STEPS", "StaticDiagnosisProblem", "EffectWrapper", "InputTransform",
+    "FeatureEffect", "LinearTerms", "Compliance", "SensorOffset", "Hysteresis", "Temperature",
+    "RelativeTemperature", "Drift", "ViscousDamping", "Transient", "Softening", "Covariate",
+    "with_effects", "CoulombFriction", "DecayDrift", "decay_model",
     # Pooled models.
     "fit_hierarchical", "hierarchical_predictive",
 ]

@@ -229,9 +229,9 @@ def test_a_feature_effect_alone_is_a_model_fitted_through_the_one_entry(theta31)
     constants named with their units and the bounds that dissipation sets (h0, h1 ≥ 0)."""
     from types import SimpleNamespace
 
-    from pamid._effects._hysteresis import Hysteresis
-    from pamid._effects._wrappers import FeatureEffect, LinearTerms
-
+    Hysteresis, FeatureEffect, LinearTerms = (pamid.engine.Hysteresis,
+                                              pamid.engine.FeatureEffect,
+                                              pamid.engine.LinearTerms)
     SAROSI = pamid.engine.get_model("sarosi")
     model = Hysteresis.wrap(SAROSI)
     assert isinstance(model, FeatureEffect) and isinstance(model, LinearTerms)
@@ -270,10 +270,12 @@ def test_a_decay_effect_is_a_model_that_wraps_the_oscillator():
     the registry's order; one effect alone is fitted through the one entry; and the Coulomb
     friction's response is the NumPy reference's (the virtual bench's injector)."""
     from pamid._decays._analysis import TRAJECTORY
-    from pamid._decays._coulomb import FIT_NAMES, decay_model
-    from pamid._effects._coulomb_friction import CoulombFriction
-    from pamid._effects._drift import DecayDrift
+    from pamid._decays._coulomb import FIT_NAMES
     from pamid._virtual._decay import coulomb_decay
+
+    CoulombFriction, DecayDrift, decay_model = (pamid.engine.CoulombFriction,
+                                                pamid.engine.DecayDrift,
+                                                pamid.engine.decay_model)
 
     model = decay_model(32)
     assert isinstance(model, DecayDrift) and isinstance(model.base, CoulombFriction)
