@@ -66,6 +66,18 @@ def _unit_x(base: ModelSpec) -> str:
     return "%" if base.contraction_column == "contraction_pct" else "mm"
 
 
+def _layout(base: ModelSpec, constants: tuple) -> tuple:
+    """(names, units, bounds) of ``base`` wrapped in an effect of ``constants``: the base's,
+    then the effect's, each unit's ``{x}`` the contraction's unit and ``{step}`` kPa."""
+    names = (*base.param_names, *(c.name for c in constants))
+    units = dict(base.param_units)
+    units.update({c.name: c.unit.format(x=_unit_x(base), step="kPa") for c in constants})
+    lower, upper = ((-np.inf,) * base.n_params, (np.inf,) * base.n_params) \
+        if base.bounds is None else base.bounds
+    return names, units, ((*lower, *(c.lower for c in constants)),
+                          (*upper, *(c.upper for c in constants)))
+
+
 @dataclasses.dataclass(frozen=True, eq=False, kw_only=True)
 class EffectWrapper(ModelSpec):
     """A model wrapped in one effect: ``theta`` = (θ of ``base``, the effect's constants).
@@ -88,23 +100,13 @@ class EffectWrapper(ModelSpec):
         offset's, are left open: the diagnosis reports a constant past them as not
         physical). A model without bounds stays without them where the effect's constants
         have none."""
-        names = (*base.param_names, *(c.name for c in cls.constants))
-        units = dict(base.param_units)
-        units.update({c.name: c.unit.format(x=_unit_x(base), step="kPa")
-                      for c in cls.constants})
+        names, units, bounds = _layout(base, cls.constants)
         open_ = all(c.lower == -np.inf and c.upper == np.inf for c in cls.constants)
-        if base.bounds is None and open_:
-            bounds = None
-        else:
-            lower, upper = ((-np.inf,) * base.n_params, (np.inf,) * base.n_params) \
-                if base.bounds is None else base.bounds
-            bounds = ((*lower, *(c.lower for c in cls.constants)),
-                      (*upper, *(c.upper for c in cls.constants)))
         label = cls.__name__.lower()
         return cls(base=base, name=f"{base.name}+{label}", param_names=names,
                    param_units=units, units=dict(base.units), columns=base.columns,
                    source=f"{base.source}, with {label}", output=base.output,
-                   bounds=bounds, **fields)
+                   bounds=None if base.bounds is None and open_ else bounds, **fields)
 
     def split(self, theta):
         """(θ of the base, the effect's constants)."""
@@ -277,15 +279,9 @@ class FeatureEffect(LinearTerms):
         file (``EffectDefinition.members``), each with its unit (``{x}`` the contraction's
         unit, ``{step}`` kPa) and bounds."""
         consts = cls.constants if constants is None else tuple(constants)
-        names = (*base.param_names, *(c.name for c in consts))
-        units = dict(base.param_units)
-        units.update({c.name: c.unit.format(x=_unit_x(base), step="kPa") for c in consts})
-        lower, upper = ((-np.inf,) * base.n_params, (np.inf,) * base.n_params) \
-            if base.bounds is None else base.bounds
+        names, units, bounds = _layout(base, consts)
         label = cls.__name__.lower()
         return cls(base=base, n_slots=len(consts), name=f"{base.name}+{label}",
                    param_names=names, param_units=units, units=dict(base.units),
                    columns=(*base.columns, f"{label}_features"),
-                   source=f"{base.source}, with {label}", output=base.output,
-                   bounds=((*lower, *(c.lower for c in consts)),
-                           (*upper, *(c.upper for c in consts))))
+                   source=f"{base.source}, with {label}", output=base.output, bounds=bounds)
