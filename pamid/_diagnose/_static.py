@@ -627,8 +627,8 @@ class StaticProblem:
         m, n = self.data.y.shape
         slots = [[c for name in s for c in self.effect(name).columns] for s in sets]
         n_tr = len(transforms())
-        n_slots = max(SMALL_SLOTS if _small(m, n) else MIN_SLOTS, max(len(s) for s in slots))
-        n_slots = 1 << (n_slots - 1).bit_length()  # buckets: fewer shapes to compile
+        n_slots = _slot_bucket(max(SMALL_SLOTS if _small(m, n) else MIN_SLOTS,
+                                   max(len(s) for s in slots)))
         folds = self.n_folds + 1
         lanes_set, lanes_muscle, lanes_fold = np.meshgrid(
             np.arange(len(sets)), np.arange(m), np.arange(folds), indexing="ij")
@@ -665,8 +665,7 @@ class StaticProblem:
         # slow. A small diagnosis keeps one width: its time is the compiling.
         width = np.full(len(sets), n_slots)
         if not _small(m, n):
-            width = np.array([min(n_slots, 1 << (max(MIN_SLOTS, len(c)) - 1).bit_length())
-                              for c in slots])
+            width = np.array([_slot_bucket(max(MIN_SLOTS, len(c))) for c in slots])
         lane_kind = np.stack([implicit[lanes_set], width[lanes_set]], axis=1).astype(int)
         p_full = self.spec.n_params + n_tr + n_slots
         # The model's constants start at the baseline's; those it holds on a bound are held
@@ -870,6 +869,12 @@ def _by_kind(kinds, run):
         for arr, a in zip(outs, out, strict=True):
             arr[sel] = np.asarray(a)
     return outs
+
+
+def _slot_bucket(k: int) -> int:
+    """The slots of a lane that needs ``k``: the next power of two (buckets, so that fewer
+    shapes compile)."""
+    return 1 << (k - 1).bit_length()
 
 
 def _pad(a, size: int, axis: int = -1) -> np.ndarray:
