@@ -96,34 +96,52 @@ def test_a_new_file_of_a_known_size_class_compiles_nothing(command, two_files, c
 
 def test_warm_up_leaves_the_classes_compiled(cli_env, tmp_path):
     """`pamid warm-up` (the README's set-up, `make demo`) compiles, on its virtual sweeps,
-    the programs of every class up to --max-rows; a lab's first file of such a class then
-    compiles nothing: a file like the ones warm-up ran, and a force map of other columns
-    (no time, no direction: fewer covariates, fewer folds, smaller effect sets), whose
-    diagnosis lanes run in the one shape of a small diagnosis (``SMALL_SLOTS``)."""
+    the programs of every class up to --max-rows, and `pamid fit`'s for files of many
+    muscles up to --batch-max-rows; a lab's first file of such a class then compiles
+    nothing: a file like the ones warm-up ran, a force map of other columns (no time, no
+    direction: fewer covariates, fewer folds, smaller effect sets), whose diagnosis lanes
+    run in the one shape of a small diagnosis (``SMALL_SLOTS``), and a file of 600 muscles,
+    some of whose residuals are correlated (their cluster interval runs in the batch's
+    calls, whatever their number)."""
     import subprocess
 
+    import numpy as np
     from conftest import PAMID
 
+    from pamid._commands.warmup import batch_muscles
+
     env = {**cli_env, "JAX_EXPLAIN_CACHE_MISSES": "1", "PAMID_CACHE_DIR": str(tmp_path / "c")}
-    warm = subprocess.run([*PAMID, "warm-up", "--max-rows", "64", "--commands",
-                           "fit,diagnose", "--json"],
+    warm = subprocess.run([*PAMID, "warm-up", "--max-rows", "64", "--batch-max-rows", "64",
+                           "--commands", "fit,diagnose", "--json"],
                           capture_output=True, text=True, env=env, timeout=900)
     assert warm.returncode == 0, warm.stderr[-2000:]
     doc = json.loads(warm.stdout)
-    assert doc["classes_rows"] == [64] and not doc["failed"]
-    assert [r["command"] for r in doc["runs"]] == ["fit", "diagnose"]
+    assert doc["classes_rows"] == [64] and doc["batch_classes_rows"] == [64]
+    assert doc["batch_muscles"] == batch_muscles() and not doc["failed"]
+    assert [(r["command"], r["muscles"]) for r in doc["runs"]] == [
+        ("fit", batch_muscles()), ("fit", 1), ("diagnose", 1)]
     assert "warm-up done" in warm.stderr  # progress, in pamid's words
     frame = pd.read_csv(BUNDLED)
-    lab, grid = tmp_path / "lab.csv", tmp_path / "map.csv"
+    lab, grid, many = tmp_path / "lab.csv", tmp_path / "map.csv", tmp_path / "many.csv"
     frame.iloc[::5].to_csv(lab, index=False)  # 60 rows: a file nobody ran
     frame.iloc[::5][["muscle", "pressure_kPa", "contraction_pct", "force_N"]].to_csv(
         grid, index=False)
     assert padded_rows(len(frame.iloc[::5])) == 64
-    for command, path in (("fit", lab), ("diagnose", lab), ("diagnose", grid)):
+    # 600 muscles of 50 rows: the sweeps of one muscle with noise of their own, from 0 to
+    # 20 N, so that the residuals of some (280) are correlated within curves and of others
+    # not: fewer muscles than a call takes get the cluster interval.
+    rng = np.random.default_rng(0)
+    rows = frame.iloc[::6]
+    pd.concat([rows.assign(muscle=f"M{i:03d}", force_N=rows["force_N"] + rng.normal(
+        0.0, 20.0 * i / 600, len(rows))) for i in range(600)]).to_csv(many, index=False)
+    assert padded_rows(len(rows), 600) == 64
+    for command, path in (("fit", lab), ("diagnose", lab), ("diagnose", grid), ("fit", many)):
         proc = subprocess.run([*PAMID, command, str(path), "--json"], capture_output=True,
                               text=True, env=env, timeout=900)
         assert proc.returncode == 0, proc.stderr[-2000:]
         assert _misses(proc.stderr) == [], (command, path.name)
+    shown = [m["interval"] for m in json.loads(proc.stdout)["muscles"]]
+    assert 0 < shown.count("cluster") < batch_muscles() - 1 < len(shown), shown.count("cluster")
 
 
 def test_warm_up_compiles_every_command_by_default():
@@ -136,6 +154,7 @@ def test_warm_up_compiles_every_command_by_default():
     warmup.register(parser.add_subparsers())
     args = parser.parse_args(["warm-up"])
     assert args.commands.split(",") == ["fit", "compare", "diagnose"]
+    assert args.max_rows == 4096 and args.batch_max_rows == 1024
 
 
 def test_warm_up_refuses_what_it_cannot_do(cli_env, tmp_path):
@@ -143,7 +162,7 @@ def test_warm_up_refuses_what_it_cannot_do(cli_env, tmp_path):
 
     from conftest import PAMID
 
-    for args in (["--commands", "fit,plot"], ["--max-rows", "0"]):
+    for args in (["--commands", "fit,plot"], ["--max-rows", "0"], ["--batch-max-rows", "-1"]):
         proc = subprocess.run([*PAMID, "warm-up", *args], capture_output=True, text=True,
                               env={**cli_env, "PAMID_CACHE_DIR": str(tmp_path)}, timeout=120)
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr

@@ -58,7 +58,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import gram_inverse, t_critical, wald_interval
-from .._lanes._batch import FitData, map_lanes
+from .._lanes._batch import FitData, items_per_call, map_lanes
 from .._solvers import residuals_and_jacobian
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
@@ -414,9 +414,18 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
         if len(need):
             curves = (curves_of(need, data.y.shape[1]) if curves_of is not None
                       else np.asarray(data.curve)[need])
-            lanes = _take_lanes(data, need)._replace(curve=jax.device_put(curves))
-            c = correlated_intervals(spec, lanes, theta[need], "cluster", curves, kind="CR3",
-                                     level=level)
+            # Those of a batch of more muscles than a call takes run in the batch's own
+            # calls, a full chunk of lanes (the last one repeated, then dropped): one
+            # compiled shape however many need it (about 40 of 10,000 white-noise muscles,
+            # by chance), the one `pamid warm-up` compiles; a few ms of arithmetic more.
+            chunk = items_per_call()
+            take = np.arange(max(len(need), chunk) if m > chunk else len(need))
+            take = np.minimum(take, len(need) - 1)
+            curves = curves[take]
+            lanes = _take_lanes(data, need[take])._replace(curve=jax.device_put(curves))
+            c = correlated_intervals(spec, lanes, theta[need[take]], "cluster", curves,
+                                     kind="CR3", level=level)
+            c = {k: np.asarray(v)[: len(need)] for k, v in c.items()}
             p = theta.shape[1]
             ci, se_c = np.full((m, p, 2), np.nan), np.full((m, p), np.nan)
             g = np.zeros(m, dtype=np.asarray(c["n_groups"]).dtype)
