@@ -277,9 +277,11 @@ def _load_or_export(key: str, fn, args):
     failed = _DIR / f"{key}.failed"
     if failed.exists():
         return None
+    options = compiler_options(args)
     if path.exists():
         try:
-            return jax.jit(export.deserialize(bytearray(path.read_bytes())).call)
+            return jax.jit(export.deserialize(bytearray(path.read_bytes())).call,
+                           compiler_options=options)
         except Exception:  # noqa: BLE001 - a damaged entry is exported again
             pass
     try:
@@ -293,7 +295,28 @@ def _load_or_export(key: str, fn, args):
     # itself, its lowering differed from the deserialized one's, so the compilation cache
     # missed once more in the second process (benchmarks/README.md, "Figures that used to
     # live in docstrings", (e)).
-    return jax.jit(export.deserialize(bytearray(data)).call)
+    return jax.jit(export.deserialize(bytearray(data)).call, compiler_options=options)
+
+
+#: XLA's options for a program whose largest argument holds at most
+#: :data:`pamid._lanes._batch.SMALL_BATCH_SAMPLES` numbers (a lab's file of one or a few
+#: muscles): LLVM's optimisation off. Compiling is nearly all of such a program's time, and
+#: optimising its machine code was a quarter of it: the one-muscle fit's two programs
+#: compiled in 1.14 and 0.95 s against 1.48 and 1.39 s (benchmarks/README.md, "LLVM's
+#: optimisation off for small programs"). A large call's arithmetic counts (a diagnosis's
+#: refits ran twice as long unoptimised): its programs are optimised as usual.
+SMALL_PROGRAM_OPTIONS = {"xla_backend_optimization_level": 0}
+
+
+def compiler_options(args) -> dict | None:
+    """:data:`SMALL_PROGRAM_OPTIONS` for a call whose arrays ``args`` (pytrees) are all small,
+    else None (XLA's defaults)."""
+    import jax
+
+    from ._batch import SMALL_BATCH_SAMPLES
+
+    sizes = [int(np.size(a)) for a in jax.tree.leaves(args)]
+    return SMALL_PROGRAM_OPTIONS if max(sizes, default=0) <= SMALL_BATCH_SAMPLES else None
 
 
 def _remember(path: Path, data: bytes) -> None:
