@@ -22,6 +22,7 @@ from jaxtyping import Array, Float, Int
 from . import _export_cache
 from ._programs import release_if_crowded
 from ._sharding import chosen_devices, lane_devices, lane_sharding, lanes_per_call
+from ._sizes import SMALL_BATCH_SAMPLES
 
 
 class FitData(NamedTuple):
@@ -164,7 +165,6 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
 #: (benchmarks/README.md, "Shape classes").
 ROWS_MIN = 64
 ROW_BUCKETS_PER_OCTAVE = 4
-SMALL_BATCH_SAMPLES = 16384
 
 
 def padded_rows(n: int, lanes: int = 1) -> int:

@@ -299,7 +299,7 @@ def _load_or_export(key: str, fn, args):
 
 
 #: XLA's options for a program whose largest argument holds at most
-#: :data:`pamid._lanes._batch.SMALL_BATCH_SAMPLES` numbers (a lab's file of one or a few
+#: :data:`pamid._lanes._sizes.SMALL_BATCH_SAMPLES` numbers (a lab's file of one or a few
 #: muscles): LLVM's optimisation off. Compiling is nearly all of such a program's time, and
 #: optimising its machine code was a quarter of it: the one-muscle fit's two programs
 #: compiled in 1.14 and 0.95 s against 1.48 and 1.39 s (benchmarks/README.md, "LLVM's
@@ -313,7 +313,7 @@ def compiler_options(args) -> dict | None:
     else None (XLA's defaults)."""
     import jax
 
-    from ._batch import SMALL_BATCH_SAMPLES
+    from ._sizes import SMALL_BATCH_SAMPLES
 
     sizes = [int(np.size(a)) for a in jax.tree.leaves(args)]
     return SMALL_PROGRAM_OPTIONS if max(sizes, default=0) <= SMALL_BATCH_SAMPLES else None
