@@ -57,15 +57,17 @@ def test_an_entry_per_shape_read_back_by_a_new_process(cache_dir, monkeypatch):
 
 def test_small_programs_compile_unoptimised_and_large_ones_as_usual(cache_dir, monkeypatch):
     """A call of a one-muscle file's shapes (1 × 1024 samples: compiling is nearly all of
-    its time) is compiled with LLVM's optimisation off, one of 512 muscles of 312 rows (its
-    arithmetic counts) with XLA's defaults, read back from disk alike; both give the
-    function's numbers."""
+    its time) is compiled with LLVM's optimisation off, one of 512 muscles of 312 rows, or
+    of 42 (its arithmetic counts), with XLA's defaults, read back from disk alike; both give
+    the function's numbers."""
     from pamid._lanes._batch import SMALL_BATCH_SAMPLES
 
     assert _export_cache.compiler_options((np.zeros((1, 1024)), np.zeros(6))) == \
         _export_cache.SMALL_PROGRAM_OPTIONS
     assert _export_cache.compiler_options((np.zeros((1, SMALL_BATCH_SAMPLES + 1)),)) is None
     assert _export_cache.compiler_options(((np.zeros((512, 312)),), np.zeros(512))) is None
+    # a 10,000-muscle fit's profile intervals: 42 muscles of 312 rows a call, heavy work
+    assert _export_cache.compiler_options((np.zeros((42, 312)), np.zeros((42, 6)))) is None
     made = []
     jit = jax.jit
 

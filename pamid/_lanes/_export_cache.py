@@ -298,25 +298,30 @@ def _load_or_export(key: str, fn, args):
     return jax.jit(export.deserialize(bytearray(data)).call, compiler_options=options)
 
 
-#: XLA's options for a program whose largest argument holds at most
-#: :data:`pamid._lanes._sizes.SMALL_BATCH_SAMPLES` numbers (a lab's file of one or a few
-#: muscles): LLVM's optimisation off. Compiling is nearly all of such a program's time, and
-#: optimising its machine code was a quarter of it: the one-muscle fit's two programs
-#: compiled in 1.14 and 0.95 s against 1.48 and 1.39 s (benchmarks/README.md, "LLVM's
-#: optimisation off for small programs"). A large call's arithmetic counts (a diagnosis's
-#: refits ran twice as long unoptimised): its programs are optimised as usual.
+#: XLA's options for a small program: one of at most :data:`SMALL_CALL_LANES` lanes whose
+#: largest argument holds at most :data:`pamid._lanes._sizes.SMALL_BATCH_SAMPLES` numbers
+#: (a lab's file of one or a few muscles): LLVM's optimisation off. Compiling is nearly all
+#: of such a program's time, and optimising its machine code was a quarter of it: the
+#: one-muscle fit's two programs compiled in 1.14 and 0.95 s against 1.48 and 1.39 s
+#: (benchmarks/README.md, "LLVM's optimisation off for small programs"). A larger call's
+#: arithmetic counts, and its programs are optimised as usual: unoptimised, a diagnosis's
+#: refits ran twice as long, and the profile intervals of a 10,000-muscle fit (calls of 42
+#: muscles of 312 rows, 13,104 numbers) made the fit 3.8–4.0 s instead of 3.0 s.
 SMALL_PROGRAM_OPTIONS = {"xla_backend_optimization_level": 0}
+SMALL_CALL_LANES = 8
 
 
 def compiler_options(args) -> dict | None:
-    """:data:`SMALL_PROGRAM_OPTIONS` for a call whose arrays ``args`` (pytrees) are all small,
-    else None (XLA's defaults)."""
+    """:data:`SMALL_PROGRAM_OPTIONS` for a call whose arrays ``args`` (pytrees, lanes on
+    the leading axis) are all small, else None (XLA's defaults)."""
     import jax
 
     from ._sizes import SMALL_BATCH_SAMPLES
 
-    sizes = [int(np.size(a)) for a in jax.tree.leaves(args)]
-    return SMALL_PROGRAM_OPTIONS if max(sizes, default=0) <= SMALL_BATCH_SAMPLES else None
+    shapes = [np.shape(a) for a in jax.tree.leaves(args)]
+    small = all(int(np.prod(s)) <= SMALL_BATCH_SAMPLES and (not s or s[0] <= SMALL_CALL_LANES)
+                for s in shapes)
+    return SMALL_PROGRAM_OPTIONS if small else None
 
 
 def _remember(path: Path, data: bytes) -> None:
