@@ -17,7 +17,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pamid._lanes._batch import padded_lanes, padded_rows
+from pamid._lanes._batch import call_layout, padded_lanes, padded_rows
 
 BUNDLED = Path(__file__).resolve().parents[1] / "pamid" / "data" / "sarosi_dmsp20_400_virtual.csv"
 MISS = re.compile(r"PERSISTENT COMPILATION CACHE MISS for '([^']+)'")
@@ -50,6 +50,12 @@ def test_size_classes():
         1, 2, 4, 8, 8, 64, 128, 512]
     assert [padded_lanes(n, 512, 312) for n in (3, 6, 52, 53, 100, 300, 509, 600)] == [
         4, 8, 64, 56, 104, 304, 512, 512]
+    # a subset of a batch larger than a call (the muscles that need a cluster interval)
+    # runs in the batch's calls: one shape, whatever the subset's size
+    assert call_layout(40, 512, True, 312) == (64, True)
+    assert [call_layout(n, 512, True, 312, of_lanes=10_000) for n in (1, 40, 300, 600)] == [
+        (512, True)] * 3 + [(512, True)]
+    assert call_layout(40, 512, True, 312, of_lanes=500) == (64, True)
 
 
 def _misses(stderr: str) -> list[str]:

@@ -58,7 +58,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._inference import gram_inverse, t_critical, wald_interval
-from .._lanes._batch import FitData, items_per_call, map_lanes
+from .._lanes._batch import FitData, map_lanes
 from .._solvers import residuals_and_jacobian
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
 from ._spec import ModelSpec
@@ -79,13 +79,14 @@ def _jacobian_residuals(spec, theta, x, y, w):
     return jax.vmap(one)(theta, x, y, w)
 
 
-def jacobian_residuals(spec: ModelSpec, theta, data: FitData):
+def jacobian_residuals(spec: ModelSpec, theta, data: FitData, of_lanes: int | None = None):
     """The weighted Jacobian J (M, n, p) and residuals r (M, n) = w^½·(model − y) at θ,
-    every muscle in one batched call (zero on padding)."""
+    every muscle in one batched call (zero on padding); ``of_lanes``: the muscles of the
+    batch these were taken from (:func:`pamid._lanes._batch.map_lanes`)."""
     jac, r = map_lanes(
         lambda t, x, y, w: _jacobian_residuals(spec, t, x, y, w),
         jnp.asarray(theta, dtype=jnp.float64), data.x, data.y, data.w,
-        cache_key=_key("jacobian_residuals", spec),
+        cache_key=_key("jacobian_residuals", spec), of_lanes=of_lanes,
     )
     return np.asarray(jac), np.asarray(r)
 
@@ -414,18 +415,13 @@ def for_fit(spec: ModelSpec, data: FitData, theta, intervals, trials=None,
         if len(need):
             curves = (curves_of(need, data.y.shape[1]) if curves_of is not None
                       else np.asarray(data.curve)[need])
-            # Those of a batch of more muscles than a call takes run in the batch's own
-            # calls, a full chunk of lanes (the last one repeated, then dropped): one
-            # compiled shape however many need it (about 40 of 10,000 white-noise muscles,
-            # by chance), the one `pamid warm-up` compiles; a few ms of arithmetic more.
-            chunk = items_per_call()
-            take = np.arange(max(len(need), chunk) if m > chunk else len(need))
-            take = np.minimum(take, len(need) - 1)
-            curves = curves[take]
-            lanes = _take_lanes(data, need[take])._replace(curve=jax.device_put(curves))
-            c = correlated_intervals(spec, lanes, theta[need[take]], "cluster", curves,
-                                     kind="CR3", level=level)
-            c = {k: np.asarray(v)[: len(need)] for k, v in c.items()}
+            lanes = _take_lanes(data, need)._replace(curve=jax.device_put(curves))
+            # In the calls of the whole batch (``of_lanes``): one compiled shape however many
+            # muscles need it (about 40 of 10,000 white-noise muscles, by chance), the one
+            # `pamid warm-up` compiles.
+            jac_r = jacobian_residuals(spec, theta[need], lanes, of_lanes=m)
+            c = correlated_intervals(spec, lanes, theta[need], "cluster", curves, kind="CR3",
+                                     level=level, jac_r=jac_r)
             p = theta.shape[1]
             ci, se_c = np.full((m, p, 2), np.nan), np.full((m, p), np.nan)
             g = np.zeros(m, dtype=np.asarray(c["n_groups"]).dtype)

@@ -269,7 +269,8 @@ def items_per_call(lanes_per_item: int = 1, *, n_samples: int | None = None,
     return size
 
 
-def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = None):
+def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = None,
+              of_lanes: int | None = None):
     """Apply ``fn`` to the arrays (pytrees with a leading lane axis) in chunks of lanes.
 
     Every chunk has the same size, so ``fn`` compiles once: on one device the last chunk
@@ -286,6 +287,10 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
 
     ``cache_key``: a name for ``fn`` and everything it closes over; on one device, calls then
     go through the exported program kept on disk when :mod:`._export_cache` is on.
+
+    ``of_lanes``: the lanes of the batch these were taken from (a few muscles of a file,
+    say); a subset of a batch of more lanes than a call takes runs in the batch's own calls
+    (:func:`call_layout`), one compiled shape however many lanes the subset has.
 
     A process that has compiled so many programs that it nears the system's limit on its
     memory regions drops them first (:func:`._programs.release_if_crowded`): a long study
@@ -310,7 +315,7 @@ def map_lanes(fn, *arrays, chunk: int | None = None, cache_key: tuple | None = N
         fn = functools.partial(_export_cache.call, cache_key, fn)
     elif _export_cache.only_cached():
         raise _export_cache.NotCached("a call that is not kept on disk")
-    return _map_lanes_one_device(fn, arrays, n, chunk, device, cpu)
+    return _map_lanes_one_device(fn, arrays, n, chunk, device, cpu, of_lanes)
 
 
 def map_shared(fn, source, *lanes, chunk: int, cache_key: tuple | None = None):
@@ -332,25 +337,27 @@ def map_shared(fn, source, *lanes, chunk: int, cache_key: tuple | None = None):
     return jax.tree.map(lambda a: a[:n], map_lanes(call, *lanes, chunk=chunk))
 
 
-def call_layout(n: int, chunk: int, cpu: bool = True, lane_size: int = 1) -> tuple[int, bool]:
+def call_layout(n: int, chunk: int, cpu: bool = True, lane_size: int = 1,
+                of_lanes: int | None = None) -> tuple[int, bool]:
     """How :func:`map_lanes` calls its function on one device for ``n`` lanes in calls of
     at most ``chunk``: the lanes of a call, and whether a call's arrays are NumPy views of
     those given (on the CPU, where the lanes take several calls) rather than the given arrays
     themselves (one call) or slices of them on the device. A compiled call is keyed by the
     arrays' type as well as their shapes (``prepare_fit`` makes the same calls). Fewer lanes
     than a call takes are padded to :func:`padded_lanes` (``lane_size``: the numbers of the
-    largest array per lane), on the host (NumPy)."""
-    if n > chunk:
-        return chunk, cpu
+    largest array per lane), on the host (NumPy). Lanes taken from a batch of ``of_lanes``
+    lanes, more than a call takes, run in that batch's calls: ``chunk`` lanes."""
+    if n > chunk or (of_lanes or 0) > chunk:
+        return chunk, cpu or n < chunk
     size = padded_lanes(n, chunk, lane_size)
     return size, size != n
 
 
-def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu):
+def _map_lanes_one_device(fn, arrays, n, chunk, device, cpu, of_lanes=None):
     import jax
 
     lane_size = max(int(np.prod(np.shape(a)[1:])) for a in jax.tree.leaves(arrays))
-    size, host = call_layout(n, chunk, cpu, lane_size)
+    size, host = call_layout(n, chunk, cpu, lane_size, of_lanes)
     if size == n:
         return jax.tree.map(np.asarray, fn(*arrays))
 
