@@ -178,8 +178,8 @@ def test_one_lane_sizer_for_fits_intervals_and_refits():
     assert items_per_call(12, devices=cpu) == CPU_CHUNK_LANES // 12
     refits = {n: items_per_call(n_samples=n, max_lane_samples=CALL_LANE_SAMPLES,
                                 max_lanes=CALL_LANES, devices=cpu)
-              for n in (64, 1024, 1500, 3000, 100_000)}
-    assert refits == {64: 64, 1024: 64, 1500: 32, 3000: 16, 100_000: 1}
+              for n in (64, 128, 512, 1024, 1500, 3000, 100_000)}
+    assert refits == {64: 64, 128: 64, 512: 16, 1024: 8, 1500: 4, 3000: 2, 100_000: 1}
 
     class Gpu:
         platform = "gpu"

@@ -841,16 +841,23 @@ def _folds(curve: np.ndarray, n_folds: int) -> np.ndarray:
 #: the CPU, 8 lanes of 2,000 and of 20,000 samples, gave 200–630 B for Sárosi with 1 or 8
 #: effect slots, with and without the compliance (2026-11-29; 220–500 B for Cullinan in the
 #: lane function before it, 2026-11-25); tests/test_cli_failures.py holds it. With at most
-#: ``CALL_LANE_SAMPLES`` lane-samples a call, a call's temporaries stay below 64 MiB; two CPU
+#: ``CALL_LANE_SAMPLES`` lane-samples a call, a call's temporaries stay below 8 MiB; two CPU
 #: threads run calls side by side (:func:`pamid._lanes._batch.map_lanes`).
 LANE_BYTES_PER_SAMPLE = 1024
 #: Lanes of every compiled call when the samples are few (:func:`_run_lanes`)...
 CALL_LANES = 64
-#: ... fewer (a power of two) where a call would hold more than this many lane-samples:
-#: with more samples the padding of a call to few lanes costs more than it saves (one
-#: muscle of 3,000 rows: 6 lanes with the compliance padded to 64 took most of a step's
-#: time).
-CALL_LANE_SAMPLES = 64 * 1024
+#: ... fewer (a power of two) where a call would hold more than this many lane-samples.
+#: A call's loop runs as long as its slowest lane: a refit in a flat valley (a covariate of
+#: the contraction beside a2·exp(a3·κ) + a6 on a file of four lengths) takes all
+#: ``MAX_ITER`` steps while the others of its call end in 5–15, and every lane of the call
+#: computes each of those steps. Smaller calls confine such a lane to a few others: with
+#: 65,536 lane-samples (32 lanes of the AARL muscle's 2,048-row class) its warm diagnosis
+#: took 6.2–6.5 s in process, with 8,192 (4 lanes) 1.9–2.1 s, the same selection and
+#: numbers; one-muscle virtual files of 300–2,000 rows 0.33–1.08 s against 0.17–0.66 s; 100
+#: muscles of 300 rows 7.0–9.0 s against 6.6–7.5 s (benchmarks/README.md, "The refits'
+#: calls"). Padding is smaller too: one muscle of 3,000 rows with 6 compliance lanes runs 3
+#: calls of 2 lanes, not one of 64.
+CALL_LANE_SAMPLES = 8 * 1024
 
 
 def _by_kind(kinds, run):
