@@ -852,11 +852,11 @@ CALL_LANES = 64
 #: ``MAX_ITER`` steps while the others of its call end in 5–15, and every lane of the call
 #: computes each of those steps. Smaller calls confine such a lane to a few others: with
 #: 65,536 lane-samples (32 lanes of the AARL muscle's 2,048-row class) its warm diagnosis
-#: took 6.2–6.5 s in process, with 8,192 (4 lanes) 1.9–2.1 s, the same selection and
-#: numbers; one-muscle virtual files of 300–2,000 rows 0.33–1.08 s against 0.17–0.66 s; 100
-#: muscles of 300 rows 7.0–9.0 s against 6.6–7.5 s (benchmarks/README.md, "The refits'
-#: calls"). Padding is smaller too: one muscle of 3,000 rows with 6 compliance lanes runs 3
-#: calls of 2 lanes, not one of 64.
+#: took 4.6–5.9 s in process, with 8,192 (4 lanes) 1.7–2.0 s, the same selection and
+#: numbers; one-muscle virtual files of 300–2,000 rows 0.37–1.10 s against 0.17–0.71 s; 100
+#: muscles of 300 rows 7.0–9.0 s against 6.6–7.5 s (``benchmarks/refit_calls.py``;
+#: benchmarks/README.md, "The refits' calls"). Padding is smaller too: one muscle of 3,000
+#: rows with 6 compliance lanes runs 3 calls of 2 lanes, not one of 64.
 CALL_LANE_SAMPLES = 8 * 1024
 
 
