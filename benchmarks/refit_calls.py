@@ -5,7 +5,7 @@
     .venv/bin/python benchmarks/refit_calls.py --samples 65536,8192 --rounds 3 FILE.csv ...
 
 A call's Levenberg–Marquardt loop runs until its slowest lane ends; a refit in a flat
-valley takes every step of the budget (``pamid._diagnose._static.MAX_ITER``), and the other
+valley takes every step of the budget (``pamid.engine.DIAGNOSIS_MAX_STEPS``), and the other
 lanes of its call compute those steps with it. The fewer lanes a call takes, the fewer wait.
 Without files: the measured AARL muscle (every 8th row of ``Festo10mm_lc20cm`` from
 ``../shared/data``, where it is beside the repository), two virtual one-muscle files (the
@@ -62,22 +62,21 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args(argv)
     import pamid
-    from pamid._diagnose import _static
+    from pamid.engine import diagnosis_call_lane_samples
 
     settings = [int(s) for s in args.samples.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
         files = args.files or default_files(Path(tmp))
-        print(f"refit_calls: CALL_LANE_SAMPLES of the package {_static.CALL_LANE_SAMPLES}; "
-              f"rounds {args.rounds}")
+        print(f"refit_calls: lane-samples a call {args.samples}; rounds {args.rounds}")
         for path in files:
             bench = pamid.load_bench(path)
             times = {s: [] for s in settings}
             outcome = {}
             for round_ in range(args.rounds + 1):  # round 0 compiles
                 for s in settings:
-                    _static.CALL_LANE_SAMPLES = s
                     t0 = time.perf_counter()
-                    d = pamid.diagnose(bench)
+                    with diagnosis_call_lane_samples(s):
+                        d = pamid.diagnose(bench)
                     if round_:
                         times[s].append(time.perf_counter() - t0)
                     outcome[s] = (tuple(d.selected), d.rmse_after)

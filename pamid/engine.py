@@ -53,7 +53,8 @@ JAX arrays), and check less than the workflows do. ::
   :func:`pamid.diagnose` prepares it (packed data, covariates, the candidate effects'
   feature columns and folds), whose ``evaluate(sets)`` refits candidate sets (set × muscle
   × fold, one batched Levenberg–Marquardt call of at most :data:`DIAGNOSIS_MAX_STEPS`
-  steps per lane).
+  steps per lane); :func:`diagnosis_call_lane_samples`, a block within which the refits
+  run in calls of another number of lane-samples (speed and memory, not results).
 * Effects as models that wrap a model (each one class in its effect's module): a force law
   with a transform of its inputs, :class:`Compliance` (F = F_base(p, κ + c·F), solved as a
   fixed point) and :class:`SensorOffset` (F = F_base(p + δ, κ)), subclasses of
@@ -76,6 +77,7 @@ from ._data._curves import Curves, find_curves
 from ._decays._coulomb import decay_model
 from ._diagnose._static import MAX_ITER as DIAGNOSIS_MAX_STEPS
 from ._diagnose._static import StaticProblem as StaticDiagnosisProblem
+from ._diagnose._static import call_lane_samples as diagnosis_call_lane_samples
 from ._effects._compliance import Compliance
 from ._effects._coulomb_friction import CoulombFriction
 from ._effects._covariate import Covariate
@@ -145,8 +147,9 @@ __all__ = [
     "AUTO_SAMPLER", "DE_FRACTION", "StackedSampler", "ensemble_log_prob", "initial_walkers",
     "integrated_time", "numpy_log_prob", "walker_log_prob",
     # Diagnosis, and the effects as models that wrap a model.
-    "DIAGNOSIS_MAX_STEPS", "StaticDiagnosisProblem", "EffectWrapper", "InputTransform",
-    "FeatureEffect", "LinearTerms", "Compliance", "SensorOffset", "Hysteresis", "Temperature",
+    "DIAGNOSIS_MAX_STEPS", "diagnosis_call_lane_samples", "StaticDiagnosisProblem",
+    "EffectWrapper", "InputTransform", "FeatureEffect", "LinearTerms", "Compliance",
+    "SensorOffset", "Hysteresis", "Temperature",
     "RelativeTemperature", "Drift", "ViscousDamping", "Transient", "Softening", "Covariate",
     "with_effects", "CoulombFriction", "DecayDrift", "decay_model",
     # Pooled models.

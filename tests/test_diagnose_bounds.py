@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import jax
 import numpy as np
@@ -67,3 +68,34 @@ def test_cli_bad_bounds_is_one_line_exit_2(hysteresis_csv, capsys, text):
     assert main(["diagnose", str(hysteresis_csv), "--bounds", text]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--bounds" in err[0]
+
+
+def test_the_refits_call_size_is_a_setting_of_speed_not_of_results(tmp_path):
+    """The refits' lane-samples a call (``pamid.engine.diagnosis_call_lane_samples``) change
+    how many lanes share a compiled call, not what the diagnosis finds; the setting is put
+    back after its block, and a size below one lane-sample is refused."""
+    import jax
+
+    import pamid
+    from pamid._diagnose import _static
+    from pamid.engine import diagnosis_call_lane_samples
+
+    proto = pamid.SarosiProtocol(min_force_N=10.0, hysteresis_N_per_bar=3.0,
+                                 points_per_curve=40)
+    frame = pamid.simulate_sarosi_bench(jax.random.key(3), pamid.sarosi.table_3_1(), proto,
+                                        muscle_ids=["M1"])
+    path = tmp_path / "bench.csv"
+    frame.to_csv(path, index=False)
+    default = _static.CALL_LANE_SAMPLES
+    first = pamid.diagnose(path)
+    with diagnosis_call_lane_samples(1024):  # a call of a lane or two, not of 8-64
+        assert _static.CALL_LANE_SAMPLES == 1024
+        second = pamid.diagnose(path)
+    assert _static.CALL_LANE_SAMPLES == default
+    assert second.selected == first.selected == ["hysteresis"]
+    assert math.isclose(second.rmse_after, first.rmse_after, rel_tol=1e-9)
+    assert math.isclose(second.cv_rmse_after, first.cv_rmse_after, rel_tol=1e-9)
+    with pytest.raises(ValueError, match="at least 1 lane-sample"):
+        with diagnosis_call_lane_samples(0):
+            pass
+    assert _static.CALL_LANE_SAMPLES == default

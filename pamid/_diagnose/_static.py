@@ -41,6 +41,7 @@ Marquardt's diagonal scaling, started from the baseline fit.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 
@@ -858,6 +859,22 @@ CALL_LANES = 64
 #: benchmarks/README.md, "The refits' calls"). Padding is smaller too: one muscle of 3,000
 #: rows with 6 compliance lanes runs 3 calls of 2 lanes, not one of 64.
 CALL_LANE_SAMPLES = 8 * 1024
+
+
+@contextlib.contextmanager
+def call_lane_samples(n: int):
+    """Within the block, the diagnosis's refits and their statistics run in calls of at most
+    ``n`` lane-samples (:data:`CALL_LANE_SAMPLES`, the default, outside it): a setting of
+    speed and memory, not of the results (``benchmarks/refit_calls.py`` times it). Each
+    call size is a compiled shape of its own."""
+    global CALL_LANE_SAMPLES
+    if int(n) < 1:
+        raise ValueError(f"call_lane_samples needs at least 1 lane-sample a call, not {n}")
+    before, CALL_LANE_SAMPLES = CALL_LANE_SAMPLES, int(n)
+    try:
+        yield
+    finally:
+        CALL_LANE_SAMPLES = before
 
 
 def _by_kind(kinds, run):
