@@ -88,7 +88,7 @@ def test_the_refits_call_size_is_a_setting_of_speed_not_of_results(tmp_path):
     frame.to_csv(path, index=False)
     default = _static.CALL_LANE_SAMPLES
     first = pamid.diagnose(path)
-    with diagnosis_call_lane_samples(1024):  # a call of a lane or two, not of 8-64
+    with diagnosis_call_lane_samples(1024):  # 400 rows, the 512-row class: 2 lanes, not 16
         assert _static.CALL_LANE_SAMPLES == 1024
         second = pamid.diagnose(path)
     assert _static.CALL_LANE_SAMPLES == default
