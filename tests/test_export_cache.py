@@ -4,6 +4,8 @@ fallback for what cannot be exported."""
 
 from __future__ import annotations
 
+import contextlib
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -236,3 +238,102 @@ def test_use_disk_caches_switches_both_on_and_gives_the_settings_back(tmp_path, 
         pamid.engine.use_disk_caches(blocker / "cache")()  # cannot be created: nothing changes
     assert jax.config.jax_compilation_cache_dir == before
     assert _export_cache.directory() == exported
+
+
+def test_a_compiled_program_is_kept_and_read_back_without_lowering(cache_dir, monkeypatch):
+    """Beside the exported program, the compiled one is kept (``.xla``, keyed also by the
+    machine and XLA's options); a new process reads it back and runs it without lowering
+    the exported program again, with the same numbers. A damaged entry is compiled again."""
+    fn = lambda a, b: (jnp.sin(a) @ b, a.sum())  # noqa: E731
+    a, b = np.linspace(0, 1, 12).reshape(3, 4), np.arange(8.0).reshape(4, 2)
+    want = _export_cache.call(("sinmat",), fn, a, b)
+    (exe,) = entries(cache_dir, ".xla")
+    assert exe.startswith(entries(cache_dir)[0].removesuffix(".jaxexport"))
+    monkeypatch.setattr(_export_cache, "_LOADED", {})  # as a new process
+    lowered = []  # JAX's own record of each lowering to MLIR
+
+    def on_duration(event, duration, **_):
+        if "jaxpr_to_mlir_module" in event:
+            lowered.append(event)
+
+    jax.monitoring.register_event_duration_secs_listener(on_duration)
+    try:
+        got = _export_cache.call(("sinmat",), fn, a, b)
+        assert lowered == []
+        _export_cache.call(("sinmat",), fn, a[:2], b)  # a new shape: exported, lowered
+        assert lowered
+    finally:
+        jax.monitoring.unregister_event_duration_listener(on_duration)
+    program = _export_cache._LOADED[_export_cache._key(("sinmat",), (a, b))]
+    assert isinstance(program, _export_cache._Program)
+    for g, w in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+        np.testing.assert_array_equal(g, w)
+    # other argument types than it was compiled for: what the exported program says
+    with pytest.raises(ValueError, match="Dtype mismatch"):
+        program(a.astype(np.float32), b)
+    (cache_dir / exe).write_bytes(b"not a program")
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    np.testing.assert_array_equal(_export_cache.call(("sinmat",), fn, a, b)[1], want[1])
+    assert (cache_dir / exe).stat().st_size > 1000  # compiled and kept again
+
+
+def test_a_program_read_from_jax_s_cache_is_compiled_again_to_be_kept(cache_dir, monkeypatch,
+                                                                      tmp_path):
+    """A program JAX read from its own compilation cache is not kept as it is (XLA's CPU
+    client serializes it without its kernels): it is compiled once more under another key,
+    and that is kept and read back; inside ``cached_only`` nothing is compiled for it."""
+    fn = lambda a: jnp.cumsum(jnp.exp(a)) * 2.0  # noqa: E731
+    a = np.linspace(0, 1, 9)
+    program = jax.jit(fn)
+    hits = []
+    with _export_cache._cache_hits() as seen:
+        _export_cache._on_event("/jax/compilation_cache/cache_hits")
+        hits += seen
+    assert hits == ["/jax/compilation_cache/cache_hits"]
+    # pretend the first compile was a hit of JAX's cache
+    calls = []
+    real = _export_cache._cache_hits
+
+    @contextlib.contextmanager
+    def first_is_a_hit():
+        with real() as events:
+            if not calls:
+                events.append("/jax/compilation_cache/cache_hits")
+            calls.append(1)
+            yield events
+
+    monkeypatch.setattr(_export_cache, "_cache_hits", first_is_a_hit)
+    with _export_cache.cached_only():
+        exported = jax.export.export(program)(a)
+        _export_cache._remember(cache_dir / "x.jaxexport", exported.serialize())
+        kept = _export_cache._executable("k", None, exported, jax.jit(exported.call), (a,))
+    assert isinstance(kept, _export_cache._Program) and entries(cache_dir, ".xla") == []
+    calls.clear()
+    kept = _export_cache._executable("k", None, exported, jax.jit(exported.call), (a,))
+    assert len(calls) == 2 and len(entries(cache_dir, ".xla")) == 1  # compiled again, kept
+    np.testing.assert_allclose(kept(a), np.cumsum(np.exp(a)) * 2.0, rtol=1e-15)
+
+
+def test_a_program_that_calls_lapack_runs_when_read_back_in_a_new_process(tmp_path):
+    """A linear solve is a call into LAPACK, whose kernels a process binds when it lowers a
+    program that uses them; a new process reading the compiled program back lowers nothing
+    and must bind them first (unbound, the call ended the process: a segmentation fault)."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, numpy as np, jax, jax.numpy as jnp\n"
+        "jax.config.update('jax_enable_x64', True)\n"
+        "from pamid._lanes import _export_cache as ec\n"
+        "ec.enable(sys.argv[1])\n"
+        "a = np.array([[4.0, 1.0], [1.0, 3.0]]); b = np.array([1.0, 2.0])\n"
+        "x = ec.call(('solve',), jnp.linalg.solve, a, b)\n"
+        "print(type(ec._LOADED[ec._key(('solve',), (a, b))]).__name__, "
+        "float(np.abs(a @ np.asarray(x) - b).max()))\n")
+    runs = [subprocess.run([sys.executable, "-c", script, str(tmp_path / "exported")],
+                           capture_output=True, text=True, timeout=120) for _ in range(2)]
+    for run in runs:
+        assert run.returncode == 0, run.stderr[-2000:]
+        kind, error = run.stdout.split()
+        assert kind == "_Program" and float(error) < 1e-12
+    assert len(entries(tmp_path / "exported", ".xla")) == 1

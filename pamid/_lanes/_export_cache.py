@@ -6,7 +6,10 @@ one-muscle ``pamid fit`` that was most of the run (benchmarks/README.md, "Figure
 to live in docstrings", (e); ``benchmarks/fit_batch.py`` section 6 times the command as a
 whole). Here a function
 is exported once per input shape with :mod:`jax.export` and serialized; a later process
-deserializes it (milliseconds) and goes straight to the compilation cache.
+deserializes it (milliseconds). Beside it, the program compiled from it is kept (``.xla``,
+:func:`_executable`): a later process reads that back and runs it, without converting the
+exported program to MLIR and hashing it for JAX's cache (about 20 ms a program, half of
+what loading one cost: the Martens map's diagnosis loads 34 of them).
 
 Off unless :func:`enable` has been called (the command line does, beside the compilation
 cache). An entry is keyed by the caller's name for the function and its static arguments,
@@ -278,24 +281,174 @@ def _load_or_export(key: str, fn, args):
     if failed.exists():
         return None
     options = compiler_options(args)
+    exported = data = None
     if path.exists():
         try:
-            return jax.jit(export.deserialize(bytearray(path.read_bytes())).call,
-                           compiler_options=options)
+            data = path.read_bytes()
+            exported = export.deserialize(bytearray(data))
         except Exception:  # noqa: BLE001 - a damaged entry is exported again
+            exported = None
+    if exported is None:
+        try:
+            data = _export(jax.jit(fn), args).serialize()
+        except Exception:  # noqa: BLE001 - not exportable: run the function itself from now on
+            _remember(failed, b"")
+            return None
+        _remember(path, data)
+        # The program as later processes will read it: compiled from the exported object
+        # itself, its lowering differed from the deserialized one's, so the compilation
+        # cache missed once more in the second process (benchmarks/README.md, "Figures
+        # that used to live in docstrings", (e)).
+        exported = export.deserialize(bytearray(data))
+    jitted = jax.jit(exported.call, compiler_options=options)
+    return _executable(key, options, exported, jitted, args, lapack=b"lapack_" in data)
+
+
+class _Program:
+    """A compiled program read back from disk (:func:`_executable`), called as the jitted
+    exported program it was compiled from; that one (``fallback``) runs any call whose
+    argument types differ from those it was compiled for (JAX's ``TypeError``, raised
+    before anything runs), as jit would retrace it."""
+
+    __slots__ = ("compiled", "fallback")
+
+    def __init__(self, compiled, fallback) -> None:
+        self.compiled, self.fallback = compiled, fallback
+
+    def __call__(self, *args):
+        try:
+            return self.compiled(*args)
+        except TypeError:
+            return self.fallback(*args)
+
+
+def _executable(key: str, options, exported, jitted, args, lapack: bool = True):
+    """The compiled program of ``jitted`` (the exported program of entry ``key``, with
+    XLA's ``options``) for ``args``: read from its ``.xla`` entry, else compiled (JAX's
+    compilation cache serves it where an earlier process compiled it) and kept there.
+
+    Reading the compiled program back skips what a new process otherwise does before JAX's
+    cache can even look it up: converting the exported program to MLIR and hashing it
+    (measured with ``JAX_LOG_COMPILES``: 0.21 s of tracing and 0.70 s of MLIR for the 46
+    programs of the Martens map's diagnosis, beside 1.18 s of loading them;
+    benchmarks/README.md, "Compiled programs read back"). The entry is keyed also by what
+    the machine code depends on (:func:`_machine`): XLA's flags, the backend and its
+    devices, the processor's features. ``lapack``: the program calls LAPACK (its kernels
+    are bound first, :func:`_lapack_ready`). Whatever fails here falls back to ``jitted``, and
+    ``PAMID_COMPILED_CACHE=off`` turns this layer off (each program is then lowered and
+    looked up in JAX's cache, as before; ``benchmarks/compiled_programs.py`` compares)."""
+    import os
+
+    import jax
+    from jax.experimental import serialize_executable
+
+    if os.environ.get("PAMID_COMPILED_CACHE", "on").strip().lower() in ("off", "0", "no"):
+        return jitted
+    exe = _DIR / f"{key}-{_machine(options)}.xla"
+    if exe.exists() and (not lapack or _lapack_ready()):
+        try:
+            compiled = serialize_executable.deserialize_and_load(
+                exe.read_bytes(), exported.in_tree, exported.out_tree)
+            return _Program(compiled, jitted)
+        except Exception:  # noqa: BLE001 - a damaged or foreign entry is compiled again
             pass
     try:
-        exported = _export(jax.jit(fn), args)
-        data = exported.serialize()
-    except Exception:  # noqa: BLE001 - not exportable: run the function itself from now on
-        _remember(failed, b"")
-        return None
-    _remember(path, data)
-    # The program as later processes will read it: compiled from the exported object
-    # itself, its lowering differed from the deserialized one's, so the compilation cache
-    # missed once more in the second process (benchmarks/README.md, "Figures that used to
-    # live in docstrings", (e)).
-    return jax.jit(export.deserialize(bytearray(data)).call, compiler_options=options)
+        with _cache_hits() as hits:
+            compiled = jitted.lower(*args).compile()
+        if hits and only_cached():  # a block that compiles nothing: read from there again
+            return _Program(compiled, jitted)
+        if hits:
+            # Read from JAX's cache, it would be kept without its kernels: compiled once
+            # more, past that cache (an option at its default value makes another key).
+            program = jax.jit(exported.call, compiler_options={**(options or {}),
+                                                               **_ANOTHER_KEY})
+            with _cache_hits() as hits:
+                fresh = program.lower(*args).compile()
+            if hits:  # that one too was read from JAX's cache: nothing is kept
+                return _Program(compiled, jitted)
+            compiled = fresh
+        payload, _, _ = serialize_executable.serialize(compiled)
+    except Exception:  # noqa: BLE001 - cannot be compiled ahead or kept: jit as usual
+        return jitted
+    _remember(exe, payload)
+    return _Program(compiled, jitted)
+
+
+@functools.cache
+def _lapack_ready() -> bool:
+    """Whether jaxlib's LAPACK kernels are bound (to SciPy's LAPACK), as a program that
+    calls them needs before it runs. Lowering a program binds them; a program read back
+    compiled is not lowered, and one that called an unbound kernel ended the process
+    (a segmentation fault in a diagnosis's refit: its linear solves are LAPACK calls). Where
+    they cannot be bound, no ``.xla`` entry is read."""
+    try:
+        import numpy as np
+        from jaxlib import lapack
+
+        lapack.prepare_lapack_call("getrf_ffi", np.float64)  # binds them all, once
+    except Exception:  # noqa: BLE001 - another jaxlib: the programs are lowered as before
+        return False
+    return True
+
+
+#: An XLA option at its default value: the same program under another key of JAX's cache.
+_ANOTHER_KEY = {"xla_embed_ir_in_executable": False}
+
+_HITS = threading.local()  # .events: a list while inside _cache_hits(), on this thread
+
+
+def _on_event(event: str, **_) -> None:
+    events = getattr(_HITS, "events", None)
+    if events is not None and event == "/jax/compilation_cache/cache_hits":
+        events.append(event)
+
+
+@contextlib.contextmanager
+def _cache_hits():
+    """A list of the hits of JAX's persistent compilation cache on this thread within the
+    block. A program that JAX read from its cache cannot be kept as an ``.xla`` entry: XLA's
+    CPU client serializes such an executable without its kernels, and the program read back
+    from it failed ("NOT_FOUND: Function bitcast_concatenate_fusion.8 not found"). Only a
+    program compiled here is kept; one read from JAX's cache is read from there again."""
+    _listen()
+    _HITS.events = []
+    try:
+        yield _HITS.events
+    finally:
+        _HITS.events = None
+
+
+@functools.cache
+def _listen() -> None:
+    import jax.monitoring
+
+    jax.monitoring.register_event_listener(_on_event)
+
+
+@functools.cache
+def _machine_base() -> str:
+    import os
+
+    import jax
+
+    backend = jax.devices()[0].client
+    parts = [os.environ.get("XLA_FLAGS", ""), backend.platform, backend.platform_version,
+             repr([d.device_kind for d in backend.devices()])]
+    try:  # the features the CPU code was compiled for (Linux; elsewhere the model name)
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
+            parts += sorted({line for line in fh if line.startswith(("flags", "model name"))})
+    except OSError:
+        import platform
+
+        parts.append(platform.processor())
+    return "\x1f".join(parts)
+
+
+def _machine(options) -> str:
+    """A short hash of what a compiled program's machine code depends on beyond its
+    entry's key: XLA's flags and ``options``, the backend and devices, the processor."""
+    text = _machine_base() + "\x1f" + repr(sorted((options or {}).items()))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 #: XLA's options for a small program: one of at most :data:`SMALL_CALL_LANES` lanes whose
