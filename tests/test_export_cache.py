@@ -18,9 +18,10 @@ from pamid._lanes import _export_cache
 @pytest.fixture
 def cache_dir(tmp_path, monkeypatch):
     monkeypatch.setattr(_export_cache, "_LOADED", {})
+    before = _export_cache.directory()  # the run's own (conftest), put back after
     _export_cache.enable(tmp_path / "exported")
     yield tmp_path / "exported"
-    _export_cache.enable(None)
+    _export_cache.enable(before)
 
 
 def entries(directory, suffix=".jaxexport"):
@@ -197,6 +198,7 @@ def test_python_scalars_among_the_inputs(cache_dir):
 
 def test_a_cache_that_cannot_be_written_costs_only_the_saving(tmp_path, monkeypatch):
     monkeypatch.setattr(_export_cache, "_LOADED", {})
+    before = _export_cache.directory()
     blocker = tmp_path / "a_file"
     blocker.write_text("")
     _export_cache.enable(blocker / "exported")  # under a file: cannot be created
@@ -212,7 +214,7 @@ def test_a_cache_that_cannot_be_written_costs_only_the_saving(tmp_path, monkeypa
         np.testing.assert_array_equal(_export_cache.call(("full",), lambda v: v + 1, a), a + 1)
         assert list((tmp_path / "full").iterdir()) == []
     finally:
-        _export_cache.enable(None)
+        _export_cache.enable(before)
 
 
 def test_use_disk_caches_switches_both_on_and_gives_the_settings_back(tmp_path, monkeypatch):

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from pamid._lanes import _programs
+from pamid._lanes import _export_cache, _programs
 from pamid._lanes._batch import map_lanes
 
 linux = pytest.mark.skipif(_programs.region_limit() is None,
@@ -37,10 +37,12 @@ def test_map_lanes_drops_the_programs_of_a_crowded_process(monkeypatch):
     # A share no process stays under: the next look finds it crowded.
     monkeypatch.setattr(_programs, "CROWDED_SHARE", 0.0)
     monkeypatch.setattr(_programs, "_last_look", -float("inf"))
+    monkeypatch.setitem(_export_cache._LOADED, "a program read back", object())
     out = map_lanes(lambda x: x + 1.0, np.zeros((4, 3)))
     np.testing.assert_array_equal(out, np.ones((4, 3)))
     assert _programs.times_released() == released + 1
     assert f._cache_size() == 0  # every jitted function's programs were dropped
+    assert _export_cache._LOADED == {}  # and those read back compiled from disk
     # Looked at most once a second: an immediate second call does not look again.
     map_lanes(lambda x: x + 1.0, np.zeros((4, 3)))
     assert _programs.times_released() == released + 1

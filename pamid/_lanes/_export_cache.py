@@ -235,6 +235,14 @@ class Startup(threading.Thread):
         self._restore()
 
 
+def forget() -> None:
+    """Drop the programs loaded in this process (read again from disk when next called):
+    those read back compiled hold their executables, which ``jax.clear_caches`` leaves
+    (:func:`pamid._lanes._programs.release_if_crowded`)."""
+    with _LOCK:
+        _LOADED.clear()
+
+
 def _key(name: tuple, args) -> str:
     import jax
 

@@ -71,7 +71,10 @@ def release_if_crowded(force_look: bool = False) -> bool:
             return False
         import jax
 
+        from . import _export_cache
+
         jax.clear_caches()
+        _export_cache.forget()  # the programs read back compiled hold their own
         gc.collect()
         _released += 1
         return True
