@@ -339,3 +339,31 @@ def test_a_program_that_calls_lapack_runs_when_read_back_in_a_new_process(tmp_pa
         kind, error = run.stdout.split()
         assert kind == "_Program" and float(error) < 1e-12
     assert len(entries(tmp_path / "exported", ".xla")) == 1
+
+
+def test_a_call_on_a_chosen_device_runs_where_it_is_called(cache_dir, monkeypatch):
+    """A program read back compiled runs on the device it was compiled for; a call made
+    where a device is chosen (``jax.default_device``: map_lanes runs so on the device that
+    ``use_devices`` picked) goes to the jitted program instead, which runs there."""
+    fn = lambda a: a * 7.0  # noqa: E731
+    a = np.arange(3.0)
+    _export_cache.call(("seven",), fn, a)
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    _export_cache.call(("seven",), fn, a)  # read back compiled
+    program = _export_cache._LOADED[_export_cache._key(("seven",), (a,))]
+    assert isinstance(program, _export_cache._Program)
+    ran = []
+    jitted = program.fallback
+    monkeypatch.setattr(program, "fallback", lambda *args: ran.append(1) or jitted(*args))
+    device = jax.devices()[-1]
+    with jax.default_device(device):
+        out = _export_cache.call(("seven",), fn, a)
+    assert ran == [1] and out.devices() == {device}
+    np.testing.assert_array_equal(out, a * 7.0)
+    np.testing.assert_array_equal(_export_cache.call(("seven",), fn, a), a * 7.0)
+    assert ran == [1]  # no device chosen: the compiled program
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    with jax.default_device(device):  # first loaded where a device is chosen: not compiled
+        _export_cache.call(("seven",), fn, a)
+    assert not isinstance(_export_cache._LOADED[_export_cache._key(("seven",), (a,))],
+                          _export_cache._Program)

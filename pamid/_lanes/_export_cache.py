@@ -317,7 +317,10 @@ class _Program:
     """A compiled program read back from disk (:func:`_executable`), called as the jitted
     exported program it was compiled from; that one (``fallback``) runs any call whose
     argument types differ from those it was compiled for (JAX's ``TypeError``, raised
-    before anything runs), as jit would retrace it."""
+    before anything runs), as jit would retrace it, and any call made where a device is
+    chosen (``jax.default_device``, as :func:`pamid._lanes._batch.map_lanes` runs a call
+    on the device ``use_devices`` picked): the compiled program runs on the device it was
+    compiled for, the jitted one where it is called."""
 
     __slots__ = ("compiled", "fallback")
 
@@ -325,6 +328,10 @@ class _Program:
         self.compiled, self.fallback = compiled, fallback
 
     def __call__(self, *args):
+        import jax
+
+        if jax.config.jax_default_device is not None:
+            return self.fallback(*args)
         try:
             return self.compiled(*args)
         except TypeError:
@@ -351,7 +358,8 @@ def _executable(key: str, options, exported, jitted, args, lapack: bool = True):
     import jax
     from jax.experimental import serialize_executable
 
-    if os.environ.get("PAMID_COMPILED_CACHE", "on").strip().lower() in ("off", "0", "no"):
+    if (os.environ.get("PAMID_COMPILED_CACHE", "on").strip().lower() in ("off", "0", "no")
+            or jax.config.jax_default_device is not None):  # a device chosen: _Program
         return jitted
     exe = _DIR / f"{key}-{_machine(options)}.xla"
     if exe.exists() and (not lapack or _lapack_ready()):
