@@ -367,3 +367,19 @@ def test_a_call_on_a_chosen_device_runs_where_it_is_called(cache_dir, monkeypatc
         _export_cache.call(("seven",), fn, a)
     assert not isinstance(_export_cache._LOADED[_export_cache._key(("seven",), (a,))],
                           _export_cache._Program)
+
+
+def test_a_compiled_program_is_keyed_by_what_its_machine_code_depends_on(monkeypatch):
+    """XLA's options and flags and the processor name a compiled entry beside its exported
+    program's key: a cache folder shared by another machine or flags is not read."""
+    base = _export_cache._machine(None)
+    assert base == _export_cache._machine({})
+    assert base != _export_cache._machine(_export_cache.SMALL_PROGRAM_OPTIONS)
+    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+    _export_cache._machine_base.cache_clear()
+    try:
+        assert _export_cache._machine(None) != base
+    finally:
+        monkeypatch.undo()
+        _export_cache._machine_base.cache_clear()
+    assert _export_cache._machine(None) == base
