@@ -370,26 +370,35 @@ def _executable(key: str, options, exported, jitted, args, lapack: bool = True):
         except Exception:  # noqa: BLE001 - a damaged or foreign entry is compiled again
             pass
     try:
-        with _cache_hits() as hits:
-            compiled = jitted.lower(*args).compile()
-        if hits and only_cached():  # a block that compiles nothing: read from there again
+        compiled, fresh = _compile_here(exported, jitted, options, args)
+        if not fresh:  # read from JAX's cache, as it will be again
             return _Program(compiled, jitted)
-        if hits:
-            # Read from JAX's cache, it would be kept without its kernels: compiled once
-            # more, past that cache (an option at its default value makes another key).
-            program = jax.jit(exported.call, compiler_options={**(options or {}),
-                                                               **_ANOTHER_KEY})
-            with _cache_hits() as hits:
-                fresh = program.lower(*args).compile()
-            if hits:  # that one too was read from JAX's cache: nothing is kept
-                return _Program(compiled, jitted)
-            compiled = fresh
         payload, _, _ = serialize_executable.serialize(compiled)
     except Exception:  # noqa: BLE001 - cannot be compiled ahead or kept: jit as usual
         return jitted
     # compressed (zlib's fastest level): a fifth of the size, 1 ms a program to read back
     _remember(exe, zlib.compress(payload, 1))
     return _Program(compiled, jitted)
+
+
+def _compile_here(exported, jitted, options, args):
+    """``(compiled, fresh)``: ``jitted`` (``exported``'s program with XLA's ``options``)
+    compiled for ``args``, and whether it was compiled here (keepable) rather than read
+    from JAX's cache (:func:`_cache_hits`: kept, it would lack its kernels). One read there
+    is compiled once more, past that cache (an option at its default value makes another
+    key of it), except inside :func:`cached_only`, which compiles nothing."""
+    import jax
+
+    again = lambda: jax.jit(exported.call,  # noqa: E731
+                            compiler_options={**(options or {}), **_ANOTHER_KEY})
+    for program in (jitted, None):
+        with _cache_hits() as hits:
+            compiled = (program or again()).lower(*args).compile()
+        if not hits:
+            return compiled, True
+        if only_cached():
+            break
+    return compiled, False
 
 
 @functools.cache
