@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/compiled_programs.py
     .venv/bin/python benchmarks/compiled_programs.py --rounds 5 --json compiled.json
+    .venv/bin/python benchmarks/compiled_programs.py --layer prefetch
 
 `pamid fit`, `compare` and `diagnose` on one-muscle files, each command a process of its
 own as a user runs it, on one warm cache (``PAMID_CACHE_DIR`` of the benchmark's own, filled
@@ -12,6 +13,11 @@ looked up in JAX's cache, as before that layer). The two settings alternate, rou
 round, so that the machine's state moves both alike; medians are printed, with SciPy's
 script on the same file (``baseline_scipy_wald.py``) measured in the same run as the
 reference a user has: the ratio is pamid's time over the script's.
+
+With ``--layer prefetch``, the layer compared is the other one: the programs the last run
+of the same kind called, read back on a thread of their own while the command computes
+(``_export_cache.expect``), on and off (``PAMID_PREFETCH=off``: each is read where it is
+first called), with the compiled programs read back in both.
 
 Files: the bundled data set (300 rows), a virtual one-muscle file of 713 rows and, where
 ``../shared/data`` is beside the repository, the Martens & Boblan force map (85 rows) and
@@ -44,6 +50,9 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--commands", default=",".join(COMMANDS))
     parser.add_argument("--json", metavar="PATH")
+    parser.add_argument("--layer", choices=("compiled", "prefetch"), default="compiled",
+                        help="compare the compiled programs read back (default) or their "
+                             "prefetch, on and off")
     args = parser.parse_args(argv)
     commands = [c for c in args.commands.split(",") if c]
     py = sys.executable
@@ -61,9 +70,12 @@ def main(argv=None) -> int:
         aarl[aarl["muscle"] == "Festo10mm_lc20cm"].iloc[::8].to_csv(one, index=False)
         files["AARL muscle, 1,369 rows"] = one
     date = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-    print(f"compiled programs read back, {date}; {os.cpu_count()} CPUs; load average "
-          f"{os.getloadavg()[0]:.2f}", flush=True)
-    settings = {"on": base, "off": {**base, "PAMID_COMPILED_CACHE": "off"}}
+    switch = {"compiled": "PAMID_COMPILED_CACHE", "prefetch": "PAMID_PREFETCH"}[args.layer]
+    words = {"compiled": ("read back", "lowered"), "prefetch": ("read ahead", "on call")}[
+        args.layer]
+    print(f"{'compiled programs read back' if args.layer == 'compiled' else 'programs read ahead'}"
+          f", {date}; {os.cpu_count()} CPUs; load average {os.getloadavg()[0]:.2f}", flush=True)
+    settings = {"on": base, "off": {**base, switch: "off"}}
     rows = []
     for label, path in files.items():
         ref = scipy_time(py, path, base, tmp, args.rounds)
@@ -85,12 +97,14 @@ def main(argv=None) -> int:
                    "scipy_s": round(ref, 3), "ratio_read_back": round(on / ref, 2),
                    "ratio_lowered": round(off / ref, 2), "saved_s": round(off - on, 3)}
             rows.append(row)
-            print(f"  {label:<24} {command:<9} read back {on:5.2f} s ({row['ratio_read_back']:.2f}"
-                  f"× SciPy)  lowered {off:5.2f} s ({row['ratio_lowered']:.2f}×)  saved "
-                  f"{off - on:+.2f} s  SciPy {ref:.2f} s", flush=True)
+            print(f"  {label:<24} {command:<9} {words[0]} {on:5.2f} s "
+                  f"({row['ratio_read_back']:.2f}× SciPy)  {words[1]} {off:5.2f} s "
+                  f"({row['ratio_lowered']:.2f}×)  saved {off - on:+.2f} s  SciPy {ref:.2f} s",
+                  flush=True)
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"date": date, "rows": rows}, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"date": date, "layer": args.layer,
+                                               "rows": rows}, indent=2) + "\n")
     return 0
 
 

@@ -159,6 +159,7 @@ def main(argv: list[str] | None = None) -> int:
                 restore_cache = _enable_compilation_cache()
             code = args.func(args)
             failure.raise_if_signalled()  # a Ctrl-C that a callback swallowed: no commit
+            _export_cache.keep_manifest()  # the programs it called, for the next such run
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return code
     except BenchDataError as exc:
@@ -196,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pamid: error: {failure.describe(exc, args.command)}", file=sys.stderr)
         return failure.EXIT_INTERNAL
     finally:  # a caller in the same process (a test, a notebook) gets its setting back
+        _export_cache.keep_manifest(keep=False)  # a prefetch still running ends here
         restore_cache()
         _export_cache.enable(exporting)
         _io.protect_inputs([])

@@ -98,6 +98,14 @@ def test_a_new_file_of_a_known_size_class_compiles_nothing(command, two_files, c
     assert 0 < len(first) <= BUDGET[command], first
     second = run(two_files[1])
     assert second == [], f"{command} compiled again on a file of the same size class: {second}"
+    # what the next run of this kind reads back ahead (_export_cache.expect): the compiled
+    # programs the command called, each kept beside its exported one
+    exported = tmp_path / "cache" / "exported"
+    (manifest,) = (exported / "manifests").iterdir()
+    keys = manifest.read_text().split()
+    assert keys and len(set(keys)) == len(keys)
+    assert all((exported / f"{k}.jaxexport").exists() and list(exported.glob(f"{k}-*.xla"))
+               for k in keys)
 
 
 def test_warm_up_leaves_the_classes_compiled(cli_env, tmp_path):

@@ -341,6 +341,36 @@ def test_a_program_that_calls_lapack_runs_when_read_back_in_a_new_process(tmp_pa
     assert len(entries(tmp_path / "exported", ".xla")) == 1
 
 
+def test_programs_jax_s_cache_holds_from_before_an_upgrade_are_still_kept(tmp_path):
+    """After a change to pamid every entry is new while JAX's cache holds the same programs
+    from the runs before it, once as compiled plainly and once more to be kept. The third
+    such entry of one program (as after a second upgrade) is still compiled here and kept:
+    with a fixed second key both forms came from JAX's cache, and no ``.xla`` entry was
+    ever kept again (every later run lowered its programs)."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, numpy as np, jax, jax.numpy as jnp\n"
+        "jax.config.update('jax_enable_x64', True)\n"
+        "jax.config.update('jax_compilation_cache_dir', sys.argv[1] + '/jax')\n"
+        "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0.0)\n"
+        "jax.config.update('jax_persistent_cache_min_entry_size_bytes', 0)\n"
+        "from pamid._lanes import _export_cache as ec\n"
+        "ec.enable(sys.argv[1] + '/exported')\n"
+        "a = np.linspace(0.0, 1.0, 7)\n"
+        "exported = jax.export.export(jax.jit(lambda a: jnp.cumsum(jnp.sin(a)) * 3.0))(a)\n"
+        "kinds = [type(ec._executable(k, None, exported, jax.jit(exported.call), (a,)))"
+        ".__name__ for k in ('v1', 'v2', 'v3')]\n"
+        "print(*kinds)\n")
+    run = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split() == ["_Program"] * 3
+    kept = sorted(p.name.split("-")[0] for p in (tmp_path / "exported").glob("*.xla"))
+    assert kept == ["v1", "v2", "v3"]
+
+
 def test_a_call_on_a_chosen_device_runs_where_it_is_called(cache_dir, monkeypatch):
     """A program read back compiled runs on the device it was compiled for; a call made
     where a device is chosen (``jax.default_device``: map_lanes runs so on the device that
@@ -383,3 +413,60 @@ def test_a_compiled_program_is_keyed_by_what_its_machine_code_depends_on(monkeyp
         monkeypatch.undo()
         _export_cache._machine_base.cache_clear()
     assert _export_cache._machine(None) == base
+
+
+def test_the_programs_of_the_last_run_of_its_kind_are_read_back_ahead(cache_dir, monkeypatch):
+    """A command says what it runs once its rows are known (``expect``); at its end the
+    compiled programs it called are kept, in order, as the manifest of its kind. The next
+    run of that kind reads them back on a thread of its own before it calls them; a call
+    of a program being read waits for it; another kind of run reads nothing."""
+    import threading
+
+    monkeypatch.setattr(_export_cache, "_USED", {})
+    monkeypatch.setattr(_export_cache, "_PENDING", {})
+    monkeypatch.setattr(_export_cache, "_PREFETCH", {})
+    fns = {"double": lambda a: a * 2.0, "cumsum": lambda a: jnp.cumsum(a) + 1.0}
+    a = np.linspace(0.0, 1.0, 6)
+    _export_cache.expect("diagnose", [300], "sarosi")
+    for name in ("cumsum", "double"):
+        _export_cache.call((name,), fns[name], a)
+    _export_cache.keep_manifest()
+    (manifest,) = (cache_dir / "manifests").iterdir()
+    keys = [_export_cache._key((name,), (a,)) for name in ("cumsum", "double")]
+    assert manifest.read_text().split() == keys
+
+    # a new process of the same kind (290 rows: the same class of rows)
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    gate, read = threading.Event(), []
+    real = _export_cache._prefetched
+
+    def slow(key):  # the first program is read only once a call waits for it
+        if not read:
+            gate.wait(timeout=30)
+        read.append(key)
+        return real(key)
+
+    monkeypatch.setattr(_export_cache, "_prefetched", slow)
+    _export_cache.expect("diagnose", [290], "sarosi")
+    thread = _export_cache._PREFETCH["thread"]
+    for _ in range(1000):  # until the thread has taken the first key
+        if _export_cache._PENDING:
+            break
+        threading.Event().wait(0.005)
+    assert list(_export_cache._PENDING) == [keys[0]]
+    threading.Timer(0.2, gate.set).start()
+    traced = []
+    out = _export_cache.call(("cumsum",), lambda x: traced.append(1) or fns["cumsum"](x), a)
+    np.testing.assert_allclose(out, np.cumsum(a) + 1.0, rtol=1e-15)
+    thread.join(timeout=30)
+    assert read == keys and traced == []  # read ahead, neither traced nor read twice
+    assert all(isinstance(_export_cache._LOADED[k], _export_cache._Program) for k in keys)
+    _export_cache.keep_manifest()
+    assert manifest.read_text().split() == keys[:1]  # what this run called
+
+    # another kind of run (four times the rows): nothing is read ahead
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    _export_cache.expect("diagnose", [1200], "sarosi")
+    assert "thread" not in _export_cache._PREFETCH
+    _export_cache.keep_manifest(keep=False)
+    assert len(list((cache_dir / "manifests").iterdir())) == 1 and _export_cache._LOADED == {}

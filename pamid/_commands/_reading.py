@@ -68,9 +68,24 @@ def parse_column_mapping(text: str) -> dict[str, str]:
     return mapping
 
 
-def reading_options(args: argparse.Namespace) -> dict:
-    """The keyword arguments of :func:`pamid.load_bench` that the options give."""
+def reading_options(args: argparse.Namespace, then=None) -> dict:
+    """The keyword arguments of :func:`pamid.load_bench` that the options give, and its
+    ``on_rows``: once the rows per muscle are known, the command's programs that the last
+    run of its kind called start to be read back (:func:`pamid._lanes._export_cache.expect`,
+    by the command, the model and the options that make other programs), then ``then(rows)``
+    where given."""
+
+    def on_rows(rows_per_muscle):
+        from .._lanes import _export_cache
+
+        _export_cache.expect(args.command, rows_per_muscle, *(
+            str(getattr(args, name, None)) for name in (
+                "model", "folds", "solver", "intervals", "method", "laws", "max_rows")))
+        if then is not None:
+            then(rows_per_muscle)
+
     return {
+        "on_rows": on_rows,
         "l0_mm": args.l0_mm,
         "keep_censored": args.keep_censored,
         "sep": args.sep,

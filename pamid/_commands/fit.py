@@ -199,7 +199,7 @@ def run(args) -> int:
             warming[0].start()
 
     try:
-        bench = load_bench(args.data, on_rows=on_rows, **reading_options(args))
+        bench = load_bench(args.data, **reading_options(args, then=on_rows))
     except BaseException:
         startup.result()  # a bad model or bounds is told first, as if checked before reading
         raise

@@ -9,7 +9,10 @@ is exported once per input shape with :mod:`jax.export` and serialized; a later 
 deserializes it (milliseconds). Beside it, the program compiled from it is kept (``.xla``,
 :func:`_executable`): a later process reads that back and runs it, without converting the
 exported program to MLIR and hashing it for JAX's cache (about 20 ms a program, half of
-what loading one cost: the Martens map's diagnosis loads 34 of them).
+what loading one cost: the Martens map's diagnosis loads 34 of them). A command that says
+what it runs (:func:`expect`, once its rows are known) has the compiled programs that the
+last run of its kind called read back on a thread of its own while it computes; at its end
+it keeps the list of those it called (:func:`keep_manifest`, a ``manifests/`` file).
 
 Off unless :func:`enable` has been called (the command line does, beside the compilation
 cache). An entry is keyed by the caller's name for the function and its static arguments,
@@ -38,6 +41,9 @@ from .._io import write_bytes_atomic
 _DIR: Path | None = None
 _LOCK = threading.Lock()
 _LOADED: dict[str, object] = {}  # key → jitted exported.call, or None: run the function
+_USED: dict[str, None] = {}  # the keys called in this process, in the order first called
+_PENDING: dict[str, threading.Event] = {}  # keys being read by the prefetch thread
+_PREFETCH: dict = {}  # "tag", "thread", "stop" of this process's manifest (expect())
 _THREAD = threading.local()  # .cached_only: see cached_only()
 
 
@@ -270,12 +276,18 @@ def call(name: tuple, fn, *args):
             raise NotCached(name)
         return fn(*args)
     key = _key(name, args)
-    with _LOCK:
-        if key not in _LOADED:
-            if only and not (_DIR / f"{key}.jaxexport").exists():
-                raise NotCached(name)
-            _LOADED[key] = _load_or_export(key, fn, args)
-        program = _LOADED[key]
+    while True:
+        with _LOCK:
+            reading = _PENDING.get(key)
+            if reading is None:
+                _USED[key] = None
+                if key not in _LOADED:
+                    if only and not (_DIR / f"{key}.jaxexport").exists():
+                        raise NotCached(name)
+                    _LOADED[key] = _load_or_export(key, fn, args)
+                program = _LOADED[key]
+                break
+        reading.wait()  # the prefetch thread is reading it (expect()): then loaded, or not
     if program is None and only:
         raise NotCached(name)
     return fn(*args) if program is None else program(*args)
@@ -353,22 +365,13 @@ def _executable(key: str, options, exported, jitted, args, lapack: bool = True):
     are bound first, :func:`_lapack_ready`). Whatever fails here falls back to ``jitted``, and
     ``PAMID_COMPILED_CACHE=off`` turns this layer off (each program is then lowered and
     looked up in JAX's cache, as before; ``benchmarks/compiled_programs.py`` compares)."""
-    import os
-
-    import jax
     from jax.experimental import serialize_executable
 
-    if (os.environ.get("PAMID_COMPILED_CACHE", "on").strip().lower() in ("off", "0", "no")
-            or jax.config.jax_default_device is not None):  # a device chosen: _Program
+    if _compiled_off():  # also where a device is chosen: _Program
         return jitted
-    exe = _DIR / f"{key}-{_machine(options)}.xla"
-    if exe.exists() and (not lapack or _lapack_ready()):
-        try:
-            compiled = serialize_executable.deserialize_and_load(
-                zlib.decompress(exe.read_bytes()), exported.in_tree, exported.out_tree)
-            return _Program(compiled, jitted)
-        except Exception:  # noqa: BLE001 - a damaged or foreign entry is compiled again
-            pass
+    program = _read_compiled(key, options, exported, jitted, lapack)
+    if program is not None:
+        return program
     try:
         compiled, fresh = _compile_here(exported, jitted, options, args)
         if not fresh:  # read from JAX's cache, as it will be again
@@ -377,20 +380,149 @@ def _executable(key: str, options, exported, jitted, args, lapack: bool = True):
     except Exception:  # noqa: BLE001 - cannot be compiled ahead or kept: jit as usual
         return jitted
     # compressed (zlib's fastest level): a fifth of the size, 1 ms a program to read back
-    _remember(exe, zlib.compress(payload, 1))
+    _remember(_DIR / f"{key}-{_machine(options)}.xla", zlib.compress(payload, 1))
     return _Program(compiled, jitted)
+
+
+def _read_compiled(key: str, options, exported, jitted, lapack: bool):
+    """The :class:`_Program` of entry ``key`` read back from its ``.xla`` entry for XLA's
+    ``options``, or None where there is none that can be read here."""
+    from jax.experimental import serialize_executable
+
+    exe = _DIR / f"{key}-{_machine(options)}.xla"
+    if exe.exists() and (not lapack or _lapack_ready()):
+        try:
+            compiled = serialize_executable.deserialize_and_load(
+                zlib.decompress(exe.read_bytes()), exported.in_tree, exported.out_tree)
+            return _Program(compiled, jitted)
+        except Exception:  # noqa: BLE001 - a damaged or foreign entry is compiled again
+            pass
+    return None
+
+
+def _compiled_off() -> bool:
+    import os
+
+    import jax
+
+    return (os.environ.get("PAMID_COMPILED_CACHE", "on").strip().lower() in ("off", "0", "no")
+            or jax.config.jax_default_device is not None)
+
+
+def expect(command: str, rows_per_muscle, *options) -> None:
+    """Say what this process runs, once its data are read: ``command`` (with the
+    ``options`` that change its programs: the model, the folds) on muscles of
+    ``rows_per_muscle`` rows. The programs the last run of the same kind called (its
+    manifest, :func:`keep_manifest`) are then read back from their ``.xla`` entries on a
+    thread of its own, in the order that run called them, while this one computes: reading
+    a compiled program back is XLA's work, outside Python's lock, and was the largest part
+    of a warm diagnosis of a small file (34 programs, 0.76 s of the Martens map's 2.4 s).
+    A program the command calls first is read by the command itself; one it never calls
+    costs the other core only. Nothing is traced, exported or compiled there.
+    ``PAMID_PREFETCH=off`` turns this off (``benchmarks/compiled_programs.py --layer
+    prefetch`` compares)."""
+    import os
+
+    from ._batch import padded_rows
+
+    counts = np.asarray(rows_per_muscle, dtype=np.int64)
+    if _DIR is None or _PREFETCH or counts.size == 0:
+        return
+    text = repr((command, int(counts.size), padded_rows(int(counts.max()), int(counts.size)),
+                 options, _code_version()))  # (another version of pamid: other programs)
+    tag = hashlib.sha256(text.encode()).hexdigest()[:20]
+    _PREFETCH["tag"] = tag
+    with _LOCK:
+        _USED.clear()  # the manifest: what this run calls from here on
+    try:
+        keys = (_DIR / "manifests" / f"{tag}.txt").read_text().split()
+    except OSError:
+        return
+    if _compiled_off() or os.environ.get("PAMID_PREFETCH", "on").strip().lower() in (
+            "off", "0", "no"):
+        return
+    stop = threading.Event()
+    thread = threading.Thread(target=_prefetch, args=(keys, stop), name="pamid-prefetch")
+    _PREFETCH.update(thread=thread, stop=stop)
+    thread.start()
+
+
+def _prefetch(keys, stop) -> None:
+    """Read the programs of ``keys`` back, each unless called or read already, until
+    ``stop``."""
+    for key in keys:
+        if stop.is_set():
+            return
+        with _LOCK:
+            if key in _LOADED or key in _PENDING:
+                continue
+            reading = _PENDING[key] = threading.Event()
+        program = None
+        try:
+            program = _prefetched(key)
+        except Exception:  # noqa: BLE001 - a prefetch only: the caller reads it itself
+            pass
+        finally:
+            with _LOCK:
+                if program is not None:
+                    _LOADED.setdefault(key, program)
+                del _PENDING[key]
+            reading.set()
+
+
+def _prefetched(key: str):
+    """Entry ``key``'s compiled program, where its ``.xla`` entry is there to be read (for
+    either of :func:`compiler_options`' values), else None."""
+    import jax
+    from jax import export
+
+    try:
+        data = (_DIR / f"{key}.jaxexport").read_bytes()
+    except OSError:
+        return None
+    exported = export.deserialize(bytearray(data))
+    for options in (SMALL_PROGRAM_OPTIONS, None):
+        if (_DIR / f"{key}-{_machine(options)}.xla").exists():
+            jitted = jax.jit(exported.call, compiler_options=options)
+            return _read_compiled(key, options, exported, jitted, b"lapack_" in data)
+    return None
+
+
+def keep_manifest(keep: bool = True) -> None:
+    """End what :func:`expect` started: stop the prefetch thread (after the program it is
+    reading), and where ``keep`` (the command ran to its end), keep the keys of the compiled
+    programs this process called, in order, as the manifest of its kind of run (rewritten
+    only where they changed)."""
+    thread, stop, tag = (_PREFETCH.get(k) for k in ("thread", "stop", "tag"))
+    if stop is not None:
+        stop.set()
+        thread.join()
+    _PREFETCH.clear()
+    if not keep or tag is None or _DIR is None:
+        return
+    with _LOCK:
+        keys = [k for k in _USED if isinstance(_LOADED.get(k), _Program)]
+    text = "\n".join(keys) + "\n"
+    path = _DIR / "manifests" / f"{tag}.txt"
+    try:
+        if not keys or (path.exists() and path.read_text() == text):
+            return
+        path.parent.mkdir(exist_ok=True)
+    except OSError:
+        return
+    _remember(path, text.encode())
 
 
 def _compile_here(exported, jitted, options, args):
     """``(compiled, fresh)``: ``jitted`` (``exported``'s program with XLA's ``options``)
     compiled for ``args``, and whether it was compiled here (keepable) rather than read
     from JAX's cache (:func:`_cache_hits`: kept, it would lack its kernels). One read there
-    is compiled once more, past that cache (an option at its default value makes another
-    key of it), except inside :func:`cached_only`, which compiles nothing."""
+    is compiled once more, past that cache (:func:`_another_key`), except inside
+    :func:`cached_only`, which compiles nothing."""
     import jax
 
     again = lambda: jax.jit(exported.call,  # noqa: E731
-                            compiler_options={**(options or {}), **_ANOTHER_KEY})
+                            compiler_options={**(options or {}), **_another_key()})
     for program in (jitted, None):
         with _cache_hits() as hits:
             compiled = (program or again()).lower(*args).compile()
@@ -418,8 +550,18 @@ def _lapack_ready() -> bool:
     return True
 
 
-#: An XLA option at its default value: the same program under another key of JAX's cache.
-_ANOTHER_KEY = {"xla_embed_ir_in_executable": False}
+def _another_key() -> dict:
+    """An XLA option that changes nothing in the program (how many buffers a debugging
+    text of its buffer assignment lists; JAX's cache key leaves out the options of dumps),
+    at a value of its own: the same program under a key of
+    JAX's cache that no compile has had, so that it is compiled here whatever that cache
+    holds. A fixed value did not do: after a second change to pamid (new entries here, the
+    same programs in JAX's cache) a process read both forms of each program from JAX's
+    cache, kept no ``.xla`` entry, and every later run lowered its programs again (none of
+    the Martens map's diagnosis's 34 programs had one)."""
+    import os
+
+    return {"xla_debug_buffer_assignment_show_max": int.from_bytes(os.urandom(4), "big") >> 1}
 
 _HITS = threading.local()  # .events: a list while inside _cache_hits(), on this thread
 
