@@ -467,6 +467,7 @@ def test_the_programs_of_the_last_run_of_its_kind_are_read_back_ahead(cache_dir,
     # another kind of run (four times the rows): nothing is read ahead
     monkeypatch.setattr(_export_cache, "_LOADED", {})
     _export_cache.expect("diagnose", [1200], "sarosi")
-    assert "thread" not in _export_cache._PREFETCH
+    _export_cache._PREFETCH["thread"].join(timeout=30)
+    assert _export_cache._LOADED == {}
     _export_cache.keep_manifest(keep=False)
     assert len(list((cache_dir / "manifests").iterdir())) == 1 and _export_cache._LOADED == {}

@@ -421,30 +421,39 @@ def expect(command: str, rows_per_muscle, *options) -> None:
     costs the other core only. Nothing is traced, exported or compiled there.
     ``PAMID_PREFETCH=off`` turns this off (``benchmarks/compiled_programs.py --layer
     prefetch`` compares)."""
+    counts = np.asarray(rows_per_muscle, dtype=np.int64)
+    if _DIR is None or _PREFETCH or counts.size == 0:
+        return
+    with _LOCK:
+        _USED.clear()  # the manifest: what this run calls from here on
+    stop = threading.Event()
+    # The thread also names the kind of run: that needs JAX (the size classes), which the
+    # command may still be importing on another thread while it reads its file.
+    thread = threading.Thread(target=_prefetch_kind, args=(command, counts, options, stop),
+                              name="pamid-prefetch")
+    _PREFETCH.update(thread=thread, stop=stop)
+    thread.start()
+
+
+def _prefetch_kind(command, counts, options, stop) -> None:
+    """:func:`expect`'s thread: the kind of run (its manifest's name), then its programs
+    read back (:func:`_prefetch`). (At a lower priority, ``nice`` 10 or 19, the AARL
+    muscle's diagnosis was no faster: its refits keep both cores busy either way.)"""
     import os
 
     from ._batch import padded_rows
 
-    counts = np.asarray(rows_per_muscle, dtype=np.int64)
-    if _DIR is None or _PREFETCH or counts.size == 0:
-        return
     text = repr((command, int(counts.size), padded_rows(int(counts.max()), int(counts.size)),
                  options, _code_version()))  # (another version of pamid: other programs)
-    tag = hashlib.sha256(text.encode()).hexdigest()[:20]
-    _PREFETCH["tag"] = tag
-    with _LOCK:
-        _USED.clear()  # the manifest: what this run calls from here on
+    _PREFETCH["tag"] = tag = hashlib.sha256(text.encode()).hexdigest()[:20]
+    if _compiled_off() or os.environ.get("PAMID_PREFETCH", "on").strip().lower() in (
+            "off", "0", "no"):
+        return
     try:
         keys = (_DIR / "manifests" / f"{tag}.txt").read_text().split()
     except OSError:
         return
-    if _compiled_off() or os.environ.get("PAMID_PREFETCH", "on").strip().lower() in (
-            "off", "0", "no"):
-        return
-    stop = threading.Event()
-    thread = threading.Thread(target=_prefetch, args=(keys, stop), name="pamid-prefetch")
-    _PREFETCH.update(thread=thread, stop=stop)
-    thread.start()
+    _prefetch(keys, stop)
 
 
 def _prefetch(keys, stop) -> None:
@@ -493,10 +502,11 @@ def keep_manifest(keep: bool = True) -> None:
     reading), and where ``keep`` (the command ran to its end), keep the keys of the compiled
     programs this process called, in order, as the manifest of its kind of run (rewritten
     only where they changed)."""
-    thread, stop, tag = (_PREFETCH.get(k) for k in ("thread", "stop", "tag"))
+    thread, stop = _PREFETCH.get("thread"), _PREFETCH.get("stop")
     if stop is not None:
         stop.set()
         thread.join()
+    tag = _PREFETCH.get("tag")
     _PREFETCH.clear()
     if not keep or tag is None or _DIR is None:
         return
