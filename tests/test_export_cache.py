@@ -447,6 +447,7 @@ def test_the_programs_of_the_last_run_of_its_kind_are_read_back_ahead(cache_dir,
         return real(key)
 
     monkeypatch.setattr(_export_cache, "_prefetched", slow)
+    monkeypatch.setattr(_export_cache, "PREFETCH_THREADS", 1)  # one, to follow its order
     _export_cache.expect("diagnose", [290], "sarosi")
     thread = _export_cache._PREFETCH["thread"]
     for _ in range(1000):  # until the thread has taken the first key
@@ -463,6 +464,18 @@ def test_the_programs_of_the_last_run_of_its_kind_are_read_back_ahead(cache_dir,
     assert all(isinstance(_export_cache._LOADED[k], _export_cache._Program) for k in keys)
     _export_cache.keep_manifest()
     assert manifest.read_text().split() == keys[:1]  # what this run called
+
+    # two threads, each reading every other program of the manifest
+    manifest.write_text("\n".join(keys) + "\n")
+    monkeypatch.setattr(_export_cache, "PREFETCH_THREADS", 2)
+    monkeypatch.setattr(_export_cache, "_LOADED", {})
+    read.clear()
+    read.append("the gate is open")
+    _export_cache.expect("diagnose", [290], "sarosi")
+    _export_cache._PREFETCH["thread"].join(timeout=30)
+    assert sorted(read[1:]) == sorted(keys) and not _export_cache._PENDING
+    assert all(isinstance(_export_cache._LOADED[k], _export_cache._Program) for k in keys)
+    _export_cache.keep_manifest(keep=False)
 
     # another kind of run (four times the rows): nothing is read ahead
     monkeypatch.setattr(_export_cache, "_LOADED", {})

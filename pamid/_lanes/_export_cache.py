@@ -437,8 +437,9 @@ def expect(command: str, rows_per_muscle, *options) -> None:
 
 def _prefetch_kind(command, counts, options, stop) -> None:
     """:func:`expect`'s thread: the kind of run (its manifest's name), then its programs
-    read back (:func:`_prefetch`). (At a lower priority, ``nice`` 10 or 19, the AARL
-    muscle's diagnosis was no faster: its refits keep both cores busy either way.)"""
+    read back (:func:`_prefetch`), by :data:`PREFETCH_THREADS` threads. (At a lower
+    priority, ``nice`` 10 or 19, the AARL muscle's diagnosis was no faster: its refits keep
+    both cores busy either way.)"""
     import os
 
     from ._batch import padded_rows
@@ -453,7 +454,21 @@ def _prefetch_kind(command, counts, options, stop) -> None:
         keys = (_DIR / "manifests" / f"{tag}.txt").read_text().split()
     except OSError:
         return
-    _prefetch(keys, stop)
+    others = [threading.Thread(target=_prefetch, args=(keys[i::PREFETCH_THREADS], stop),
+                               name="pamid-prefetch") for i in range(1, PREFETCH_THREADS)]
+    for thread in others:
+        thread.start()
+    _prefetch(keys[::PREFETCH_THREADS], stop)
+    for thread in others:
+        thread.join()
+
+
+#: Threads that read a manifest's programs back, each every other one in order: reading a
+#: program is XLA's work outside Python's lock, and the command waits for the program it
+#: calls next where the reading has not got there yet. With one thread the Martens map's
+#: diagnosis waited 0.34–0.56 s for them, with two 0.21–0.32 s (2-core VM, 2026-12-02;
+#: benchmarks/README.md, "Programs read ahead").
+PREFETCH_THREADS = 2
 
 
 def _prefetch(keys, stop) -> None:
