@@ -466,7 +466,7 @@ def _prefetch_kind(command, counts, options, stop) -> None:
 #: Threads that read a manifest's programs back, each every other one in order: reading a
 #: program is XLA's work outside Python's lock, and the command waits for the program it
 #: calls next where the reading has not got there yet. With one thread the Martens map's
-#: diagnosis waited 0.34–0.56 s for them, with two 0.21–0.32 s (2-core VM, 2026-12-02;
+#: diagnosis waited 0.32–0.56 s for them, with two 0.21–0.32 s (2-core VM, 2026-12-02;
 #: benchmarks/README.md, "Programs read ahead").
 PREFETCH_THREADS = 2
 
