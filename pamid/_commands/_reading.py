@@ -68,12 +68,24 @@ def parse_column_mapping(text: str) -> dict[str, str]:
     return mapping
 
 
-def reading_options(args: argparse.Namespace, then=None) -> dict:
-    """The keyword arguments of :func:`pamid.load_bench` that the options give, and its
-    ``on_rows``: once the rows per muscle are known, the command's programs that the last
-    run of its kind called start to be read back (:func:`pamid._lanes._export_cache.expect`,
-    by the command, the model and the options that make other programs), then ``then(rows)``
-    where given."""
+def reading_options(args: argparse.Namespace) -> dict:
+    """The keyword arguments of :func:`pamid.load_bench` that the options give."""
+    return {
+        "l0_mm": args.l0_mm,
+        "keep_censored": args.keep_censored,
+        "sep": args.sep,
+        "decimal": args.decimal,
+        "sheet": args.sheet,
+        "header_row": args.header_row,
+        "columns": args.columns,
+    }
+
+
+def expecting(args: argparse.Namespace, then=None):
+    """:func:`pamid.load_bench`'s ``on_rows`` for the command ``args`` runs: once the rows
+    per muscle are known, the programs that the last run of its kind called start to be
+    read back (:func:`pamid._lanes._export_cache.expect`, by the command, the model and the
+    options that make other programs), then ``then(rows)`` where given."""
 
     def on_rows(rows_per_muscle):
         from .._lanes import _export_cache
@@ -84,13 +96,4 @@ def reading_options(args: argparse.Namespace, then=None) -> dict:
         if then is not None:
             then(rows_per_muscle)
 
-    return {
-        "on_rows": on_rows,
-        "l0_mm": args.l0_mm,
-        "keep_censored": args.keep_censored,
-        "sep": args.sep,
-        "decimal": args.decimal,
-        "sheet": args.sheet,
-        "header_row": args.header_row,
-        "columns": args.columns,
-    }
+    return on_rows

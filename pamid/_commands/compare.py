@@ -98,7 +98,7 @@ def cmd_compare(args) -> int:
     from .._io import final_place, write_text_atomic
     from .._report._compare import comparison_table, write_comparison_plots
     from ._model import check_model, parse_bounds_per_model
-    from ._reading import reading_options
+    from ._reading import expecting, reading_options
 
     t0 = time.perf_counter()
 
@@ -113,7 +113,7 @@ def cmd_compare(args) -> int:
     specs = [check_model(ref)  # a typo or a broken model file: one line, before reading data
              for ref in (models if models is not None else list(MODELS))]
     bounds = parse_bounds_per_model(args.bounds, specs)
-    bench = load_bench(args.data, **reading_options(args))
+    bench = load_bench(args.data, on_rows=expecting(args), **reading_options(args))
     progress(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}")
     result = compare_models(bench, models, n_folds=args.folds, bounds=bounds,
                             progress=progress)

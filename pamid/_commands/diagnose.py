@@ -87,10 +87,11 @@ def cmd_diagnose(args) -> int:
     spec = check_model(args.model)  # a typo or a broken model file: one line, before reading
     bounds = parse_bounds(args.bounds, spec)  # bad text: one line, exit 2
     progress(f"diagnosing {args.data}")
-    from ._reading import reading_options
+    from ._reading import expecting, reading_options
 
     d = diagnose(args.data, model=args.model, inertia_kg_m2=args.inertia_kg_m2,
-                 n_folds=args.folds, progress=progress, read_options=reading_options(args),
+                 n_folds=args.folds, progress=progress, read_options={
+                     **reading_options(args), "on_rows": expecting(args)},
                  max_rows=args.max_rows, bounds=bounds)
     out_json = d.to_dict()
     if args.out:

@@ -167,7 +167,7 @@ def _warm_fit(startup, rows_per_muscle, intervals) -> None:
 
 def run(args) -> int:
     from .._data._bench import load_bench
-    from ._reading import reading_options
+    from ._reading import expecting, reading_options
 
     quiet = args.json
     t0 = time.perf_counter()
@@ -199,7 +199,8 @@ def run(args) -> int:
             warming[0].start()
 
     try:
-        bench = load_bench(args.data, **reading_options(args, then=on_rows))
+        bench = load_bench(args.data, on_rows=expecting(args, then=on_rows),
+                           **reading_options(args))
     except BaseException:
         startup.result()  # a bad model or bounds is told first, as if checked before reading
         raise

@@ -56,9 +56,8 @@ def run_stream(args, startup, intervals: tuple[str, ...]) -> int:
     from ._reading import reading_options
 
     t0 = time.perf_counter()
-    options = reading_options(args)
-    del options["on_rows"]  # (chunks of many muscles: no one class of programs to expect)
-    chunks = load_bench_chunks(args.data, args.chunk_rows, share=share, **options)
+    chunks = load_bench_chunks(args.data, args.chunk_rows, share=share,
+                               **reading_options(args))
     spec, bounds = startup.result()  # a bad model or bounds: told before any data are read
     summary = _Summary(args, intervals)
     if share is None:

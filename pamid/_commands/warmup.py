@@ -51,7 +51,7 @@ def register(subparsers) -> None:
 def size_classes(max_rows: int, muscles: int = 1) -> list[int]:
     """The row classes of files of ``muscles`` muscles whose largest has up to ``max_rows``
     rows (the class holding it too); none for ``max_rows`` 0."""
-    from .._lanes._batch import ROWS_MIN, padded_rows
+    from .._lanes._sizes import ROWS_MIN, padded_rows
 
     if max_rows <= 0:
         return []

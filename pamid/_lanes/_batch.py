@@ -22,7 +22,7 @@ from jaxtyping import Array, Float, Int
 from . import _export_cache
 from ._programs import release_if_crowded
 from ._sharding import chosen_devices, lane_devices, lane_sharding, lanes_per_call
-from ._sizes import SMALL_BATCH_SAMPLES
+from ._sizes import SMALL_BATCH_SAMPLES, padded_rows
 
 
 class FitData(NamedTuple):
@@ -152,37 +152,6 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
         w=jax.device_put(scatter(1.0, 0.0)),
         curve=jax.device_put(scatter(curve_ids, -1, dtype=np.int64)),
     )
-
-
-#: Row counts of packed batches: at least ``ROWS_MIN``; then, for a batch of few samples in
-#: all (lanes × rows ≤ ``SMALL_BATCH_SAMPLES``: a lab's file of one or a few muscles), the
-#: powers of two; for larger batches a geometric grid of ``ROW_BUCKETS_PER_OCTAVE`` sizes
-#: per doubling (each a multiple of 8). A file of a row count never seen before packs to a
-#: size that an earlier file of nearby length had, so the programs compiled (and kept on
-#: disk) for that one serve it. In a small batch compilation is nearly all of the time and
-#: the arithmetic of the padding (weight 0) next to nothing, so the classes are wide; in a
-#: large one the arithmetic counts, and the padding costs at most 2^(1/4) − 1 = 19 %
-#: (benchmarks/README.md, "Shape classes").
-ROWS_MIN = 64
-ROW_BUCKETS_PER_OCTAVE = 4
-
-
-def padded_rows(n: int, lanes: int = 1) -> int:
-    """The number of columns a batch of ``lanes`` muscles, the largest of ``n`` rows, is
-    packed to (module constants above); 0 for no rows."""
-    if n <= 0:
-        return 0
-    if n <= ROWS_MIN:
-        return ROWS_MIN
-    if n * max(lanes, 1) <= SMALL_BATCH_SAMPLES:
-        return 1 << (n - 1).bit_length()
-    steps = ROW_BUCKETS_PER_OCTAVE
-    k = max(0, int(np.floor(steps * np.log2(n / ROWS_MIN))) - 1)
-    while True:  # from just below, so that float rounding cannot skip a size
-        size = -(-int(np.ceil(ROWS_MIN * 2.0 ** (k / steps))) // 8) * 8
-        if size >= n:
-            return size
-        k += 1
 
 
 def padded_lanes(n: int, chunk: int, lane_size: int = 1) -> int:

@@ -179,9 +179,13 @@ def prepare_in_background(disk_caches: bool = False, then=None) -> Startup:
     settings back. The warm-up is best effort: whatever fails or is not done yet there is
     done where it is needed (an import started on the thread is waited for by Python's
     import lock). ``pamid fit`` on 10,000 muscles: see benchmarks/README.md, end_to_end.py."""
-    startup = Startup(disk_caches, then)
+    global _STARTING
+    startup = _STARTING = Startup(disk_caches, then)
     startup.start()
     return startup
+
+
+_STARTING = None  # the last Startup: its .caches tells when the disk caches are set
 
 
 class Startup(threading.Thread):
@@ -198,11 +202,15 @@ class Startup(threading.Thread):
         self._restore = lambda: None
         self._value = None
         self._error: BaseException | None = None
+        self.caches = threading.Event()  # set once the disk caches are on (or not to be)
 
     def run(self) -> None:
         try:
-            if self._disk_caches:
-                self._restore = use_disk_caches()
+            try:
+                if self._disk_caches:
+                    self._restore = use_disk_caches()
+            finally:
+                self.caches.set()
             if self._then is not None:
                 self._value = self._then()
         except BaseException as exc:  # noqa: BLE001 - handed to the caller by result()
@@ -422,13 +430,14 @@ def expect(command: str, rows_per_muscle, *options) -> None:
     ``PAMID_PREFETCH=off`` turns this off (``benchmarks/compiled_programs.py --layer
     prefetch`` compares)."""
     counts = np.asarray(rows_per_muscle, dtype=np.int64)
-    if _DIR is None or _PREFETCH or counts.size == 0:
+    if _PREFETCH or counts.size == 0:
         return
     with _LOCK:
         _USED.clear()  # the manifest: what this run calls from here on
     stop = threading.Event()
-    # The thread also names the kind of run: that needs JAX (the size classes), which the
-    # command may still be importing on another thread while it reads its file.
+    # The thread also names the kind of run: that needs pamid's version (a hash of its
+    # source) and, for `pamid fit`, the disk caches, which its start-up thread turns on
+    # while the file is read.
     thread = threading.Thread(target=_prefetch_kind, args=(command, counts, options, stop),
                               name="pamid-prefetch")
     _PREFETCH.update(thread=thread, stop=stop)
@@ -442,8 +451,12 @@ def _prefetch_kind(command, counts, options, stop) -> None:
     both cores busy either way.)"""
     import os
 
-    from ._batch import padded_rows
+    from ._sizes import padded_rows
 
+    if _STARTING is not None:  # `pamid fit` turns the disk caches on while it reads
+        _STARTING.caches.wait(timeout=300)
+    if _DIR is None:
+        return
     text = repr((command, int(counts.size), padded_rows(int(counts.max()), int(counts.size)),
                  options, _code_version()))  # (another version of pamid: other programs)
     _PREFETCH["tag"] = tag = hashlib.sha256(text.encode()).hexdigest()[:20]
