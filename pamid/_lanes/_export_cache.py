@@ -301,6 +301,18 @@ def call(name: tuple, fn, *args):
     return fn(*args) if program is None else program(*args)
 
 
+def _read_exported(key: str):
+    """``(exported, data)``: entry ``key``'s exported program and its serialized bytes, or
+    ``(None, None)`` where there is none or it is damaged (exported again by the caller)."""
+    from jax import export
+
+    try:
+        data = (_DIR / f"{key}.jaxexport").read_bytes()
+        return export.deserialize(bytearray(data)), data
+    except Exception:  # noqa: BLE001 - missing or damaged
+        return None, None
+
+
 def _load_or_export(key: str, fn, args):
     import jax
     from jax import export
@@ -310,13 +322,7 @@ def _load_or_export(key: str, fn, args):
     if failed.exists():
         return None
     options = compiler_options(args)
-    exported = data = None
-    if path.exists():
-        try:
-            data = path.read_bytes()
-            exported = export.deserialize(bytearray(data))
-        except Exception:  # noqa: BLE001 - a damaged entry is exported again
-            exported = None
+    exported, data = _read_exported(key)
     if exported is None:
         try:
             data = _export(jax.jit(fn), args).serialize()
@@ -408,21 +414,26 @@ def _read_compiled(key: str, options, exported, jitted, lapack: bool):
     return None
 
 
-def _compiled_off() -> bool:
+def _switched_off(variable: str) -> bool:
+    """Whether the environment variable ``variable`` turns a layer off ("off", "0", "no")."""
     import os
 
+    return os.environ.get(variable, "on").strip().lower() in ("off", "0", "no")
+
+
+def _compiled_off() -> bool:
+    """``PAMID_COMPILED_CACHE=off``, or a device chosen (:class:`_Program`)."""
     import jax
 
-    return (os.environ.get("PAMID_COMPILED_CACHE", "on").strip().lower() in ("off", "0", "no")
-            or jax.config.jax_default_device is not None)
+    return _switched_off("PAMID_COMPILED_CACHE") or jax.config.jax_default_device is not None
 
 
 def expect(command: str, rows_per_muscle, *options) -> None:
     """Say what this process runs, once its data are read: ``command`` (with the
     ``options`` that change its programs: the model, the folds) on muscles of
     ``rows_per_muscle`` rows. The programs the last run of the same kind called (its
-    manifest, :func:`keep_manifest`) are then read back from their ``.xla`` entries on a
-    thread of its own, in the order that run called them, while this one computes: reading
+    manifest, :func:`keep_manifest`) are then read back from their ``.xla`` entries on
+    threads of their own, in the order that run called them, while this one computes: reading
     a compiled program back is XLA's work, outside Python's lock, and was the largest part
     of a warm diagnosis of a small file (34 programs, 0.76 s of the Martens map's 2.4 s).
     A program the command calls first is read by the command itself; one it never calls
@@ -449,8 +460,6 @@ def _prefetch_kind(command, counts, options, stop) -> None:
     read back (:func:`_prefetch`), by :data:`PREFETCH_THREADS` threads. (At a lower
     priority, ``nice`` 10 or 19, the AARL muscle's diagnosis was no faster: its refits keep
     both cores busy either way.)"""
-    import os
-
     from ._sizes import padded_rows
 
     if _STARTING is not None:  # `pamid fit` turns the disk caches on while it reads
@@ -460,8 +469,7 @@ def _prefetch_kind(command, counts, options, stop) -> None:
     text = repr((command, int(counts.size), padded_rows(int(counts.max()), int(counts.size)),
                  options, _code_version()))  # (another version of pamid: other programs)
     _PREFETCH["tag"] = tag = hashlib.sha256(text.encode()).hexdigest()[:20]
-    if _compiled_off() or os.environ.get("PAMID_PREFETCH", "on").strip().lower() in (
-            "off", "0", "no"):
+    if _compiled_off() or _switched_off("PAMID_PREFETCH"):
         return
     try:
         keys = (_DIR / "manifests" / f"{tag}.txt").read_text().split()
@@ -511,13 +519,10 @@ def _prefetched(key: str):
     """Entry ``key``'s compiled program, where its ``.xla`` entry is there to be read (for
     either of :func:`compiler_options`' values), else None."""
     import jax
-    from jax import export
 
-    try:
-        data = (_DIR / f"{key}.jaxexport").read_bytes()
-    except OSError:
+    exported, data = _read_exported(key)
+    if exported is None:
         return None
-    exported = export.deserialize(bytearray(data))
     for options in (SMALL_PROGRAM_OPTIONS, None):
         if (_DIR / f"{key}-{_machine(options)}.xla").exists():
             jitted = jax.jit(exported.call, compiler_options=options)
@@ -591,12 +596,12 @@ def _lapack_ready() -> bool:
 def _another_key() -> dict:
     """An XLA option that changes nothing in the program (how many buffers a debugging
     text of its buffer assignment lists; JAX's cache key leaves out the options of dumps),
-    at a value of its own: the same program under a key of
-    JAX's cache that no compile has had, so that it is compiled here whatever that cache
-    holds. A fixed value did not do: after a second change to pamid (new entries here, the
-    same programs in JAX's cache) a process read both forms of each program from JAX's
-    cache, kept no ``.xla`` entry, and every later run lowered its programs again (none of
-    the Martens map's diagnosis's 34 programs had one)."""
+    at a value of its own: the same program under a key of JAX's cache that no compile has
+    had, so that it is compiled here whatever that cache holds. A fixed value did not do:
+    after a second change to pamid (new entries here, the same programs in JAX's cache) a
+    process read both forms of each program from JAX's cache, kept no ``.xla`` entry, and
+    every later run lowered its programs again (none of the Martens map's diagnosis's 34
+    programs had one)."""
     import os
 
     return {"xla_debug_buffer_assignment_show_max": int.from_bytes(os.urandom(4), "big") >> 1}
