@@ -55,31 +55,32 @@ def test_the_muscle_is_not_identifiable_in_a_fit(three_levels_file):
 
 
 def test_one_unidentified_muscle_is_flagged_and_diagnosed_with_the_others(
-        three_levels_file, capsys):
-    d = diagnose(three_levels_file)
-    assert d.groups == ["A", "B", "C"]
-    assert [f["muscle"] for f in d.muscles_flagged] == ["C"]
-    flag = d.muscles_flagged[0]
-    assert flag["diagnosed"] and flag["status"] == "not_identifiable"
-    assert flag["why"].startswith("a3 is not determined by these data")
-    assert d.selected == ["hysteresis"]
-    for entry in d.constants:  # the hysteresis of every muscle, C's included
-        h1 = entry["effects"]["hysteresis"]["h1"]
-        assert h1["ci95"][0] < 3.0 < h1["ci95"][1], entry["muscle"]
-    assert [e["baseline_status"] for e in d.constants] == ["converged", "converged",
-                                                          "not_identifiable"]
-    assert d.constants[2]["base"]["a3"] == pytest.approx(-3.0)  # held on its bound
-    assert "flagged: muscle C: a3 is not determined" in diagnosis_report(d)
-    out = d.to_dict()
-    assert out["muscles_flagged"] == json.loads(json.dumps(out["muscles_flagged"]))
-
+        three_levels_file, tmp_path, capsys):
+    # One diagnosis, through the command (it was run once as a library call and once more
+    # as a command: 92 s and 60 s in one process, nearly all of each compiling, since the
+    # command runs the exported programs): its JSON is the Diagnosis's to_dict(), its
+    # report.txt diagnosis_report().
     from pamid._cli import main
 
     capsys.readouterr()
-    assert main(["diagnose", str(three_levels_file), "--json"]) == 0
+    assert main(["diagnose", str(three_levels_file), "--json", "--out", str(tmp_path)]) == 0
     printed = json.loads(capsys.readouterr().out)
-    assert printed["muscles_flagged"][0]["muscle"] == "C"
-    assert printed["selected"] == ["hysteresis"]
+    written = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert printed == written
+    d = printed
+    assert d["groups"] == ["A", "B", "C"]
+    assert [f["muscle"] for f in d["muscles_flagged"]] == ["C"]
+    flag = d["muscles_flagged"][0]
+    assert flag["diagnosed"] and flag["status"] == "not_identifiable"
+    assert flag["why"].startswith("a3 is not determined by these data")
+    assert d["selected"] == ["hysteresis"]
+    for entry in d["constants"]:  # the hysteresis of every muscle, C's included
+        h1 = entry["effects"]["hysteresis"]["h1"]
+        assert h1["ci95"][0] < 3.0 < h1["ci95"][1], entry["muscle"]
+    assert [e["baseline_status"] for e in d["constants"]] == ["converged", "converged",
+                                                             "not_identifiable"]
+    assert d["constants"][2]["base"]["a3"] == pytest.approx(-3.0)  # held on its bound
+    assert "flagged: muscle C: a3 is not determined" in (tmp_path / "report.txt").read_text()
 
 
 def _map(rng, theta, pressures_bar, contractions_pct, muscle):
