@@ -508,16 +508,14 @@ class StaticProblem:
         the softening's r): the grid value whose column, of the allowed sign, best explains
         the baseline's residual (or that of ``fit``, for the effects ``names``) once the
         base model's own directions (and ``fit``'s linear effects') are projected out."""
-        jacs = {}  # muscle -> the base model's Jacobian, the same for every effect
-        for e in self.effects:
-            if e.grid is None or (names is not None and e.name not in names):
-                continue
-            lower = e.definition.constants[0].lower
-            for i, (m, (x, y)) in enumerate(zip(self.muscles, groups, strict=True)):
-                values = np.atleast_1d(e.definition.grid_values(self.file, m))
-                if i not in jacs:
-                    jacs[i] = np.asarray(model_jacobian(self.spec, self.theta0[i], x))
-                cols = [jacs[i], np.ones(len(y))[:, None]]
+        # muscle -> (an orthonormal basis of the directions projected out, the residual
+        # left): the same for every effect with a grid
+        projected = {}
+
+        def residual_and_basis(i, m, x, y):
+            if i not in projected:
+                cols = [np.asarray(model_jacobian(self.spec, self.theta0[i], x)),
+                        np.ones(len(y))[:, None]]
                 if fit is None:
                     r = y - m.baseline_N
                 else:
@@ -526,7 +524,16 @@ class StaticProblem:
                     if slots:
                         cols.append(self.features[i, 0, : len(y)][:, slots])
                 q, _ = np.linalg.qr(np.column_stack(cols))
-                r = r - q @ (q.T @ r)
+                projected[i] = (q, r - q @ (q.T @ r))
+            return projected[i]
+
+        for e in self.effects:
+            if e.grid is None or (names is not None and e.name not in names):
+                continue
+            lower = e.definition.constants[0].lower
+            for i, (m, (x, y)) in enumerate(zip(self.muscles, groups, strict=True)):
+                values = np.atleast_1d(e.definition.grid_values(self.file, m))
+                q, r = residual_and_basis(i, m, x, y)
                 best, best_gain, best_any, any_gain = values[0], -1.0, values[0], -1.0
                 for v in values:
                     z = np.asarray(e.definition.features(m, lambda c, f=m.frame: f[c].to_numpy(
