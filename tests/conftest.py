@@ -141,10 +141,13 @@ def _compilation_cache_of_the_run(tmp_path_factory):
     same programs in several processes). Never the user's ``~/.cache/pamid``.
 
     JAX's cache is keyed by the compiled program itself (its HLO, the compiler options and
-    versions), so a test gets what it would have compiled; pamid's own cache of traced
-    programs (``exported``) stays off in-process, as a library user has it. Two workers may
-    write one entry at the same moment: JAX then reads a torn entry as a miss (a warning)
-    and compiles."""
+    versions), so a test gets what it would have compiled. pamid's own cache of traced and
+    compiled programs (``exported``, in the same folder) is on wherever a command runs, in
+    a subprocess or in-process (``main`` switches it on, as the command does, and back
+    off when it returns); the library's calls outside a command trace and compile as a
+    library user's do. A test that runs one computation both ways compiles it twice (two
+    forms of each program). Two workers may write one entry at the same moment: JAX then
+    reads a torn entry as a miss (a warning) and compiles."""
     from jax.experimental.compilation_cache import compilation_cache
 
     base = tmp_path_factory.getbasetemp()
