@@ -33,9 +33,10 @@ process on one core (as `make test`'s workers are) and 0.00782 on two, the same 
 
 `fit --method mcmc`'s chain is a different draw on another machine: its recording (an
 earlier session's VM) differed on this one (2026-12-02, an AMD EPYC with AVX2, jaxlib
-0.12.0.1) in every posterior number (a1's mean −4.1253 against −4.1359, its
-Monte Carlo error 0.044), while the least-squares numbers beside them held to 1e-8. Its posterior summaries are compared within
-their Monte Carlo error (:func:`_posterior_differences`), everything else as above.
+0.12.0.1) in every posterior number (a1's mean −4.1253 against −4.1359, its Monte
+Carlo error 0.044), while the least-squares numbers beside them held to 1e-8. Its
+posterior summaries are compared within their Monte Carlo error
+(:func:`_posterior_differences`), everything else as above.
 """
 
 from __future__ import annotations
