@@ -131,8 +131,8 @@ def _stream_share(chunks, args, spec, bounds, intervals, summary, t0, share):
         _stream(chunks, sink, args, spec, bounds, intervals, summary, t0, empty_ok=True)
     except (BenchDataError, ValueError) as exc:
         error = str(exc)
-    states = [json.loads(b) for b in _gather(json.dumps(
-        {"error": error, **summary.state()}).encode())]
+    states = [json.loads(b) for b in _exchange(json.dumps(
+        {"error": error, **summary.state()}), share)]
     bad = [(i, s["error"]) for i, s in enumerate(states) if s["error"]]
     if bad:
         i, message = bad[0]
@@ -155,6 +155,35 @@ def _write_parts(parts, path: str) -> None:
     with pq.ParquetWriter(path, parts[0].schema) as writer:
         for table in parts:
             writer.write_table(table.cast(parts[0].schema))
+
+
+#: How long a process that has fitted its share waits for the others' (``_exchange``): as
+#: long as the slowest share takes. A process that dies ends the job sooner (the
+#: coordination service's heartbeats).
+WAIT_FOR_SHARES_S = 24 * 3600
+
+
+def _exchange(text: str, share) -> list[str]:
+    """``text`` of every process, in process order, on every process, through the job's
+    key-value store (``jax.distributed``'s coordination service), which waits for the
+    slowest process as long as :data:`WAIT_FOR_SHARES_S`. Not by a collective: gloo sets up
+    its connections at the first collective and gives up after 30 s, and a process that
+    stopped early at a bad row then failed there ("Gloo context initialization failed:
+    DEADLINE_EXCEEDED") while the other still fitted its share (a clean-clone run of the
+    tests on a loaded 2-core machine, 2026-12-02). After this exchange every process goes
+    on to the gather of the tables at once. (Where JAX has no such store, the gather.)"""
+    try:
+        from jax._src.distributed import global_state
+
+        client = global_state.client
+        client.key_value_set  # noqa: B018 - the store's interface, or the gather below
+    except (ImportError, AttributeError):
+        return [b.decode() for b in _gather(text.encode())]
+    index, count = share
+    client.key_value_set(f"pamid/fit-stream/state/{index}", text)
+    return [client.blocking_key_value_get(f"pamid/fit-stream/state/{i}",
+                                          int(WAIT_FOR_SHARES_S * 1000))
+            for i in range(count)]
 
 
 def _gather(data: bytes) -> list[bytes]:
