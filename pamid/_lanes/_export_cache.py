@@ -644,8 +644,15 @@ def _machine_base() -> str:
     import jax
 
     backend = jax.devices()[0].client
+    # The devices this process runs on, by their ids in the job: a compiled program is
+    # bound to its device, and in a job of several processes (`pamid fit --stream
+    # --processes 2`) each has its own. Keyed by the device kinds alone, process 1 read the
+    # program process 0 had kept, for process 0's device, and hung running it (the second
+    # run of such a job on one cache, every time; the test suite's shared cache, 2026-12-02).
     parts = [os.environ.get("XLA_FLAGS", ""), backend.platform, backend.platform_version,
-             repr([d.device_kind for d in backend.devices()])]
+             repr([d.device_kind for d in backend.devices()]),
+             f"process {jax.process_index()} of {jax.process_count()}",
+             repr([d.id for d in jax.local_devices()])]
     try:  # the features the CPU code was compiled for (Linux; elsewhere the model name)
         with open("/proc/cpuinfo", encoding="ascii", errors="replace") as fh:
             parts += sorted({line for line in fh if line.startswith(("flags", "model name"))})
