@@ -171,15 +171,10 @@ def _exchange(text: str, share) -> list[str]:
     stopped early at a bad row then failed there ("Gloo context initialization failed:
     DEADLINE_EXCEEDED") while the other still fitted its share (a clean-clone run of the
     tests on a loaded 2-core machine, 2026-12-02). After this exchange every process goes
-    on to the gather of the tables at once. (Where JAX has no such store, the gather.)"""
-    try:
-        from jax._src.distributed import global_state
+    on to the gather of the tables at once."""
+    from jax._src.distributed import global_state
 
-        client = global_state.client
-        client.key_value_set  # noqa: B018 - the store's interface, or the gather below
-    except (ImportError, AttributeError):
-        return [b.decode() for b in _gather(text.encode())]
-    index, count = share
+    client, (index, count) = global_state.client, share
     client.key_value_set(f"pamid/fit-stream/state/{index}", text)
     return [client.blocking_key_value_get(f"pamid/fit-stream/state/{i}",
                                           int(WAIT_FOR_SHARES_S * 1000))
