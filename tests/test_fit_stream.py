@@ -236,3 +236,27 @@ def test_a_worker_process_gets_every_option_that_changes_its_fit():
     assert changed == compared - {"data"}, "set every forwarded option above"
     assert (again.coordinator, again.num_processes, again.process_id, again.out) == (
         "127.0.0.1:1234", 2, 1, None)
+
+
+def test_jobs_one_after_another_on_one_cache_each_end(tmp_path, bench_frame, cli_env):
+    """Two good jobs and a bad-row job, each of two processes, on one new cache of pamid's
+    compiled programs: a program kept on disk is bound to its process' device, and before
+    the cache's key named the process, the second job read the other process' program and
+    hung (every time, by hand)."""
+    import subprocess
+
+    from conftest import PAMID
+
+    env = {**cli_env, "PAMID_CACHE_DIR": str(tmp_path / "cache")}
+    good = _parquet(tmp_path, bench_frame, name="good.parquet")
+    frame = bench_frame.copy()
+    frame.loc[len(frame) - 10, "force_N"] = np.nan
+    bad = _parquet(tmp_path, frame, name="bad.parquet")
+    for job, path in enumerate([good, good, bad]):
+        proc = subprocess.run(PAMID + ["fit", str(path), "--stream", "--intervals", "wald",
+                                       "--processes", "2", "--out", str(tmp_path / f"o{job}")],
+                              capture_output=True, text=True, env=env, timeout=600)
+        assert proc.returncode == (2 if path == bad else 0), (job, proc.stderr[-3000:])
+        assert (tmp_path / f"o{job}" / "constants.parquet").exists() == (path == good)
+    assert f"process 1 of 2 stopped: {bad}" in proc.stderr and "Traceback" not in proc.stderr
+    assert any((tmp_path / "cache").rglob("*.xla"))  # the jobs did keep programs there
