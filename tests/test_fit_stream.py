@@ -158,38 +158,6 @@ def test_shares_hold_every_muscle_once_in_file_order(tmp_path, bench_frame, coun
     assert np.array_equal(np.concatenate(rows), np.arange(1, len(bench_frame) + 1))
 
 
-def test_two_processes_give_the_one_process_constants(tmp_path, bench_frame, pamid_cli):
-    path = _parquet(tmp_path, bench_frame, row_group=1000)
-    one, two = tmp_path / "one", tmp_path / "two"
-    assert main(["fit", str(path), "--stream", "--chunk-rows", "1500", "--intervals", "wald",
-                 "--out", str(one)]) == 0
-    proc = pamid_cli(["fit", path, "--stream", "--chunk-rows", "1500", "--intervals", "wald",
-                      "--processes", "2", "--json", "--out", two], timeout=600)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    summary = json.loads(proc.stdout)  # one JSON object: gloo's line went to stderr
-    assert summary["muscles"] == MUSCLES
-    assert [p["process"] for p in summary["processes"]] == [0, 1]
-    assert all(p["muscles"] > 0 for p in summary["processes"])
-    assert "process 1 of 2: chunk" in proc.stderr
-    a, b = pd.read_parquet(one / "constants.parquet"), pd.read_parquet(two / "constants.parquet")
-    assert list(a["muscle"]) == list(b["muscle"])
-    for name in ("a1", "a2", "a3", "a4", "a5", "a6", "rmse_N", "a3_wald_high"):
-        np.testing.assert_allclose(b[name], a[name], rtol=1e-8)
-
-
-def test_a_bad_row_in_one_process_ends_every_process_with_its_message(tmp_path, bench_frame,
-                                                                        pamid_cli):
-    frame = bench_frame.copy()
-    frame.loc[len(frame) - 10, "force_N"] = np.nan  # in the second process' share
-    path = _parquet(tmp_path, frame, row_group=1000)
-    proc = pamid_cli(["fit", path, "--stream", "--intervals", "wald", "--processes", "2",
-                      "--out", tmp_path / "out"], timeout=600)
-    assert proc.returncode == 2, proc.stderr[-3000:]
-    assert f"process 1 of 2 stopped: {path}" in proc.stderr
-    assert f"row {len(frame) - 9}" in proc.stderr and "Traceback" not in proc.stderr
-    assert not (tmp_path / "out").exists()
-
-
 def test_what_several_processes_refuse(tmp_path, bench_frame, capsys):
     path = _parquet(tmp_path, bench_frame)
     assert main(["fit", str(path), "--processes", "2", "--out", str(tmp_path / "o")]) == 2
@@ -238,25 +206,51 @@ def test_a_worker_process_gets_every_option_that_changes_its_fit():
         "127.0.0.1:1234", 2, 1, None)
 
 
-def test_jobs_one_after_another_on_one_cache_each_end(tmp_path, bench_frame, cli_env):
-    """Two good jobs and a bad-row job, each of two processes, on one new cache of pamid's
-    compiled programs: a program kept on disk is bound to its process' device, and before
-    the cache's key named the process, the second job read the other process' program and
-    hung (every time, by hand)."""
+def test_jobs_of_two_processes_one_after_another_on_one_cache(tmp_path, bench_frame, cli_env):
+    """Three jobs of two processes (``--processes 2``) on one new cache of compiled programs:
+    a good file, the same file again, and a file with a bad row in process 1's share. The
+    first two give the one-process constants, each process on its own device; the third ends
+    both processes with the row's message. A program kept on disk is bound to its process'
+    device: before the cache's key named the process, the second job read the other
+    process' program and its processes stopped on a coordination error (every time)."""
     import subprocess
 
     from conftest import PAMID
 
     env = {**cli_env, "PAMID_CACHE_DIR": str(tmp_path / "cache")}
-    good = _parquet(tmp_path, bench_frame, name="good.parquet")
+    good = _parquet(tmp_path, bench_frame, name="good.parquet", row_group=1000)
     frame = bench_frame.copy()
-    frame.loc[len(frame) - 10, "force_N"] = np.nan
-    bad = _parquet(tmp_path, frame, name="bad.parquet")
+    frame.loc[len(frame) - 10, "force_N"] = np.nan  # in the second process' share
+    bad = _parquet(tmp_path, frame, name="bad.parquet", row_group=1000)
+    one = tmp_path / "one"
+    assert main(["fit", str(good), "--stream", "--chunk-rows", "1500", "--intervals",
+                 "wald,profile", "--out", str(one)]) == 0
+    expected = pd.read_parquet(one / "constants.parquet")
     for job, path in enumerate([good, good, bad]):
-        proc = subprocess.run(PAMID + ["fit", str(path), "--stream", "--intervals", "wald",
-                                       "--processes", "2", "--out", str(tmp_path / f"o{job}")],
-                              capture_output=True, text=True, env=env, timeout=600)
-        assert proc.returncode == (2 if path == bad else 0), (job, proc.stderr[-3000:])
-        assert (tmp_path / f"o{job}" / "constants.parquet").exists() == (path == good)
-    assert f"process 1 of 2 stopped: {bad}" in proc.stderr and "Traceback" not in proc.stderr
+        out = tmp_path / f"job{job}"
+        proc = subprocess.run(
+            PAMID + ["fit", str(path), "--stream", "--chunk-rows", "1500", "--intervals",
+                     "wald,profile", "--processes", "2", "--json", "--out", str(out)],
+            capture_output=True, text=True, env=env, timeout=600)
+        assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
+        if path == bad:
+            assert proc.returncode == 2, proc.stderr[-3000:]
+            assert f"process 1 of 2 stopped: {bad}" in proc.stderr
+            assert f"row {len(frame) - 9}" in proc.stderr
+            assert not out.exists()
+            continue
+        assert proc.returncode == 0, (job, proc.stderr[-3000:])
+        summary = json.loads(proc.stdout)  # one JSON object: gloo's line went to stderr
+        assert summary["muscles"] == MUSCLES
+        assert [p["process"] for p in summary["processes"]] == [0, 1]
+        assert all(p["muscles"] > 0 for p in summary["processes"])
+        assert [len(p["devices"]) for p in summary["processes"]] == [1, 1]
+        assert len({d for p in summary["processes"] for d in p["devices"]}) == 2
+        assert "process 1 of 2: chunk" in proc.stderr
+        table = pd.read_parquet(out / "constants.parquet")
+        assert list(table["muscle"]) == list(expected["muscle"])
+        for name in ("a1", "a2", "a3", "a4", "a5", "a6", "rmse_N", "a3_wald_high",
+                     "a1_profile_low"):
+            np.testing.assert_allclose(table[name], expected[name], rtol=1e-8)
+        assert table["converged"].all()
     assert any((tmp_path / "cache").rglob("*.xla"))  # the jobs did keep programs there

@@ -1,9 +1,10 @@
 """Batches spread over several devices give the one-device answers.
 
 Several CPU devices exist only if JAX is told before it starts
-(``--xla_force_host_platform_device_count``), so the sharded fits run in subprocesses:
-``tests/sharded_fit_check.py`` on two virtual devices, and ``pamid fit --stream --processes 2``
-as two ``jax.distributed`` processes on localhost.
+(``--xla_force_host_platform_device_count``), so the sharded fit runs in a subprocess,
+``tests/sharded_fit_check.py``, on two virtual devices. A fit of two ``jax.distributed``
+processes on localhost (``pamid fit --stream --processes 2``) is tested in
+``tests/test_fit_stream.py``.
 """
 
 from __future__ import annotations
@@ -17,10 +18,8 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pandas as pd
 import pytest
 
-import pamid
 from pamid._lanes import _batch
 from pamid._lanes._sharding import lane_devices, lanes_per_call, use_devices
 
@@ -128,40 +127,6 @@ def test_sharded_fit_equals_one_device():
     # differently for another batch size (measured 4.5e-11 relative), at the scale of
     # the matrix's condition number times the unit roundoff.
     assert out["chunked"]["sse"] <= 1e-12 and out["chunked"]["jtj_inv"] <= 1e-9
-
-
-def test_distributed_fit_two_processes(tmp_path):
-    """Two jax.distributed processes on localhost (``pamid fit --stream --processes 2``),
-    each fitting its share of a Parquet bench file on its own device, give the
-    single-process fit of the whole file, in the file's muscle order."""
-    key_theta, key_noise = jax.random.split(jax.random.key(9))
-    theta = np.asarray(pamid.sarosi.table_3_1().to_vector()) * (
-        1.0 + 0.03 * np.asarray(jax.random.normal(key_theta, (9, 6)))
-    )
-    frame = pamid.simulate_sarosi_bench(
-        key_noise,
-        pamid.Sarosi.from_vector(theta),
-        pamid.SarosiProtocol(points_per_curve=10, min_force_N=10.0),
-    )
-    bench_path = tmp_path / "bench.parquet"
-    frame.to_parquet(bench_path, index=False, row_group_size=len(frame) // 9 * 4 + 7)
-    out = tmp_path / "out"
-    proc = subprocess.run(
-        [sys.executable, "-m", "pamid", "fit", str(bench_path), "--stream", "--processes", "2",
-         "--json", "--out", str(out)],
-        env=_env(), capture_output=True, text=True, timeout=600, cwd=ROOT,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    got = json.loads(proc.stdout)
-    ref = pamid.fit_least_squares(pamid.load_bench(bench_path), intervals=("wald", "profile"))
-    assert [p["process"] for p in got["processes"]] == [0, 1]
-    assert [p["muscles"] for p in got["processes"]] == [5, 4]
-    assert [len(p["devices"]) for p in got["processes"]] == [1, 1]
-    assert len({d for p in got["processes"] for d in p["devices"]}) == 2  # its own each
-    table = pd.read_parquet(out / "constants.parquet")
-    assert list(table["muscle"]) == list(ref.muscles)
-    np.testing.assert_allclose(table[list(ref.param_names)].to_numpy(), ref.theta, rtol=1e-10)
-    assert table["converged"].all()
 
 
 def test_one_lane_sizer_for_fits_intervals_and_refits():
