@@ -57,7 +57,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="pamid-first-fit-"))
     py = sys.executable
-    trees = {"this tree": args.this.resolve(), **({"other tree": args.other.resolve()} if args.other else {})}
+    trees = {"this tree": args.this.resolve()}
+    if args.other:
+        trees["other tree"] = args.other.resolve()
     print(f"first fit, {datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')}; "
           f"{os.cpu_count()} CPUs; load average {os.getloadavg()[0]:.2f}; {args.file}",
           flush=True)
