@@ -114,7 +114,7 @@ def test_warm_up_leaves_the_classes_compiled(cli_env, tmp_path):
     muscles up to --batch-max-rows; a lab's first file of such a class then compiles
     nothing: a file like the ones warm-up ran, a force map of other columns (no time, no
     direction: fewer covariates, fewer folds, smaller effect sets), whose diagnosis lanes
-    run in the one shape of a small diagnosis (``SMALL_SLOTS``), and a file of 600 muscles,
+    run in the shapes of a small diagnosis (``SMALL_SLOTS``), and a file of 600 muscles,
     some of whose residuals are correlated (their cluster interval runs in the batch's
     calls, whatever their number)."""
     import subprocess

@@ -89,8 +89,9 @@ MIN_SLOTS = 8
 MIN_FEATURES = 16
 #: A small diagnosis (muscles × rows ≤ ``SMALL_BATCH_SAMPLES``: a lab's file of one or a
 #: few muscles, where compiling is nearly all of the time) runs its lanes in one shape per
-#: size class of rows, whatever the file's columns and curves: at least ``SMALL_SLOTS``
-#: slots, ``SMALL_FEATURES`` feature columns and room for ``N_FOLDS`` folds. The programs
+#: size class of rows, whatever the file's columns and curves: room for ``SMALL_SLOTS``
+#: slots (each lane runs with the 8 or 16 its set needs, ``evaluate``),
+#: ``SMALL_FEATURES`` feature columns and ``N_FOLDS`` folds. The programs
 #: `pamid warm-up` compiles on its virtual sweeps then serve a force map (16 features, 4
 #: folds, sets of ≤ 8 constants) or another lab's isometric tests of that class; the slots
 #: masked more cost the small lanes next to nothing.
@@ -666,14 +667,14 @@ class StaticProblem:
         source = self._shared_arrays()
         # Lanes with and without an implicit transform (the compliance) are two models, two
         # calls of the one entry: the implicit force law costs four Newton steps that the
-        # other lanes do not need. In a large batch, the lanes of sets with few columns also
-        # run with fewer slots than the widest set's (the hysteresis with its slip elements
-        # has 10): the normal equations grow with the square of the constants, and every
-        # lane carrying 16 slots made the first selection step of 100 muscles 1.6 times as
-        # slow. A small diagnosis keeps one width: its time is the compiling.
-        width = np.full(len(sets), n_slots)
-        if not _small(m, n):
-            width = np.array([_slot_bucket(max(MIN_SLOTS, len(c))) for c in slots])
+        # other lanes do not need. The lanes of sets with few columns also run with fewer
+        # slots than the widest set's (the hysteresis with its slip elements has 10): the
+        # normal equations grow with the square of the constants. Every lane carrying 16
+        # slots made the first selection step of 100 muscles 1.6 times as slow, and the
+        # warm diagnosis of one AARL muscle (1,369 rows) 2.76 s where it takes 2.28–2.49 s
+        # with 8 (the refits 1.2 s against 0.9 s): once `pamid warm-up` has compiled both
+        # widths, a small diagnosis's time is its arithmetic too.
+        width = np.array([_slot_bucket(max(MIN_SLOTS, len(c))) for c in slots])
         lane_kind = np.stack([implicit[lanes_set], width[lanes_set]], axis=1).astype(int)
         p_full = self.spec.n_params + n_tr + n_slots
         # The model's constants start at the baseline's; those it holds on a bound are held
