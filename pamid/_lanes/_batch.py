@@ -105,8 +105,12 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
     Padding repeats the muscle's first sample in ``x`` (so that the model stays finite
     there), has y = 0, weight 0 and curve −1. Every lane has :func:`padded_rows` of the
     largest muscle's row count (and the number of muscles): files of nearby lengths pack
-    to one shape, so that they share compiled programs. No loop over muscles: positions
-    within a muscle by a cumulative count, then one scatter per array.
+    to one shape, so that they share compiled programs. No loop over muscles: the rows
+    sorted by muscle (stable; no sort where each muscle is one block, in order), then one
+    masked assignment per array (lane k's first ``counts[k]`` places, in row-major order,
+    are its rows in order), with no index array of the rows: the first packing of 10,000
+    muscles of 300 rows in a process took 0.17-0.32 s, against 0.21-0.47 s by a scatter of
+    row indices (benchmarks/README.md, "Packing the lanes by a mask").
     """
     codes = np.asarray(codes, dtype=np.int64)
     n = len(codes)
@@ -118,36 +122,35 @@ def pack_rows(codes, x, y, curve=None, n_muscles: int | None = None) -> FitData:
     n_max = padded_rows(int(counts.max()) if n else 0, m)
     if np.all(codes[1:] >= codes[:-1]):
         order = None  # each muscle one block, in order: no sort
-        pos = np.arange(n) - starts[codes]
         first = starts
     else:
         order = np.argsort(codes, kind="stable")
-        pos = np.empty(n, dtype=np.int64)
-        pos[order] = np.arange(n) - starts[codes[order]]
         first = order[np.minimum(starts, n - 1)]
     empty = counts == 0
     first = np.where(empty, 0, first)
     full = order is None and n == m * n_max  # every muscle one block of n_max rows
-    flat = None if full else codes * n_max + pos  # where each row goes in the (m, n_max) batch
+    mask = None if full else np.arange(n_max)[None, :] < counts[:, None]  # (m, n_max)
 
     def scatter(values, fill, dtype=np.float64):
         if full:  # the rows are the batch already, row-major
             return np.broadcast_to(np.asarray(values, dtype=dtype), (n,)).reshape(m, n_max)
+        if np.ndim(values) == 0:  # the weight, a curve of 0: the mask itself
+            return np.where(mask, np.asarray(values, dtype=dtype), np.asarray(fill, dtype=dtype))
         out = np.empty((m, n_max), dtype=dtype)
         out[...] = fill
-        out.reshape(-1)[flat] = values
+        out[mask] = values if order is None else np.asarray(values)[order]
         return out
 
-    xs = []
-    for a in x:
+    def x_lane(a):
         a = np.asarray(a, dtype=np.float64)
         pad = np.where(empty, 0.0, a[first]) if n else np.zeros(m)
-        xs.append(scatter(a, pad[:, None]))
+        return scatter(a, pad[:, None])
+
     curve_ids = 0 if curve is None else _dense_within(codes, np.asarray(curve), order)
     # device_put, not jnp.asarray: JAX stages a NumPy array through a compiled program of
     # its shape (lax.stage), compiled (or read from the disk cache) once per shape.
     return FitData(
-        x=tuple(jax.device_put(a) for a in xs),
+        x=tuple(jax.device_put(x_lane(a)) for a in x),
         y=jax.device_put(scatter(np.asarray(y, dtype=np.float64), 0.0)),
         w=jax.device_put(scatter(1.0, 0.0)),
         curve=jax.device_put(scatter(curve_ids, -1, dtype=np.int64)),
