@@ -86,16 +86,16 @@ def test_the_refits_call_size_is_a_setting_of_speed_not_of_results(tmp_path):
                                         muscle_ids=["M1"])
     path = tmp_path / "bench.csv"
     frame.to_csv(path, index=False)
-    default = _static.CALL_LANE_SAMPLES
+    default = _static.CALL_LANE_SAMPLES, _static.SMALL_CALL_LANE_SAMPLES
     first = pamid.diagnose(path)
-    with diagnosis_call_lane_samples(1024):  # 400 rows, the 512-row class: 2 lanes, not 16
-        assert _static.CALL_LANE_SAMPLES == 1024
+    with diagnosis_call_lane_samples(1024):  # 400 rows, the 512-row class: 2 lanes, not 8
+        assert _static.CALL_LANE_SAMPLES == _static.SMALL_CALL_LANE_SAMPLES == 1024
         second = pamid.diagnose(path)
-    assert _static.CALL_LANE_SAMPLES == default
+    assert (_static.CALL_LANE_SAMPLES, _static.SMALL_CALL_LANE_SAMPLES) == default
     assert second.selected == first.selected == ["hysteresis"]
     assert math.isclose(second.rmse_after, first.rmse_after, rel_tol=1e-9)
     assert math.isclose(second.cv_rmse_after, first.cv_rmse_after, rel_tol=1e-9)
     with pytest.raises(ValueError, match="at least 1 lane-sample"):
         with diagnosis_call_lane_samples(0):
             pass
-    assert _static.CALL_LANE_SAMPLES == default
+    assert (_static.CALL_LANE_SAMPLES, _static.SMALL_CALL_LANE_SAMPLES) == default

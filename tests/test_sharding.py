@@ -132,10 +132,16 @@ def test_sharded_fit_equals_one_device():
 def test_one_lane_sizer_for_fits_intervals_and_refits():
     """``items_per_call`` (pamid/_lanes/_batch.py) sizes every batched call: a fit's muscles,
     a muscle's 2·p interval ends, the diagnosis's refits by their samples (a power of two,
-    at most CALL_LANES, at most CALL_LANE_SAMPLES lane-samples)."""
+    at most CALL_LANES, at most CALL_LANE_SAMPLES lane-samples, SMALL_CALL_LANE_SAMPLES in a
+    small diagnosis)."""
     import jax
 
-    from pamid._diagnose._static import CALL_LANE_SAMPLES, CALL_LANES
+    from pamid._diagnose._static import (
+        CALL_LANE_SAMPLES,
+        CALL_LANES,
+        SMALL_CALL_LANE_SAMPLES,
+        _lane_samples,
+    )
     from pamid._lanes._batch import CHUNK_LANES, CPU_CHUNK_LANES, items_per_call
 
     cpu = jax.devices("cpu")
@@ -145,6 +151,12 @@ def test_one_lane_sizer_for_fits_intervals_and_refits():
                                 max_lanes=CALL_LANES, devices=cpu)
               for n in (64, 128, 512, 1024, 1500, 3000, 100_000)}
     assert refits == {64: 64, 128: 64, 512: 16, 1024: 8, 1500: 4, 3000: 2, 100_000: 1}
+    # A small diagnosis (one or a few muscles) takes half as many lane-samples a call.
+    small = {n: items_per_call(n_samples=n, max_lane_samples=SMALL_CALL_LANE_SAMPLES,
+                               max_lanes=CALL_LANES, devices=cpu) for n in (64, 512, 2048)}
+    assert small == {64: 64, 512: 8, 2048: 2}
+    assert _lane_samples(1, 2048) == SMALL_CALL_LANE_SAMPLES
+    assert _lane_samples(100, 512) == CALL_LANE_SAMPLES
 
     class Gpu:
         platform = "gpu"

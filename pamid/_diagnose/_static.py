@@ -695,7 +695,7 @@ class StaticProblem:
                                 eff_bounds[0][lanes_set]], axis=1)
         upper = np.concatenate([np.tile(upper, (len(lanes_set), 1)),
                                 eff_bounds[1][lanes_set]], axis=1)
-        size = items_per_call(n_samples=n, max_lane_samples=CALL_LANE_SAMPLES,
+        size = items_per_call(n_samples=n, max_lane_samples=_lane_samples(m, n),
                               max_lanes=CALL_LANES)
 
         def refit(kind, sel):
@@ -867,22 +867,38 @@ CALL_LANES = 64
 #: benchmarks/README.md, "The refits' calls"). Padding is smaller too: one muscle of 3,000
 #: rows with 6 compliance lanes runs 3 calls of 2 lanes, not one of 64.
 CALL_LANE_SAMPLES = 8 * 1024
+#: ... and this many in a small diagnosis (``_small``: a file of one or a few muscles), whose
+#: few lanes leave a flat-valley refit fewer others to hold up in a call of its own: the
+#: refits of one AARL muscle took 0.98–1.12 s against 1.16–1.27 s at 8,192, virtual files of
+#: 300–2,000 rows 0.09–0.43 s against 0.11–0.50 s, the same selections and RMSE; a file of
+#: 100 muscles, not small, 2.38–2.50 s against 2.24–2.34 s, so it keeps 8,192
+#: (benchmarks/README.md, "Smaller calls for a small diagnosis").
+SMALL_CALL_LANE_SAMPLES = 4 * 1024
+
+
+def _lane_samples(muscles: int, rows: int) -> int:
+    """Lane-samples a call of the refits and their statistics takes for a diagnosis of
+    ``muscles`` × ``rows`` (padded rows): :data:`SMALL_CALL_LANE_SAMPLES` for a small one,
+    else :data:`CALL_LANE_SAMPLES`."""
+    return SMALL_CALL_LANE_SAMPLES if _small(muscles, rows) else CALL_LANE_SAMPLES
 
 
 @contextlib.contextmanager
 def call_lane_samples(n: int):
     """Within the block, the diagnosis's refits and their statistics run in calls of at most
-    ``n`` lane-samples (:data:`CALL_LANE_SAMPLES`, the default, outside it): a setting of
-    speed and memory, not of the results (``benchmarks/refit_calls.py`` times it). Each
-    call size is a compiled shape of its own."""
-    global CALL_LANE_SAMPLES
+    ``n`` lane-samples, small diagnoses and others alike (:data:`SMALL_CALL_LANE_SAMPLES`
+    and :data:`CALL_LANE_SAMPLES`, the defaults, outside it): a setting of speed and memory,
+    not of the results (``benchmarks/refit_calls.py`` times it). Each call size is a
+    compiled shape of its own."""
+    global CALL_LANE_SAMPLES, SMALL_CALL_LANE_SAMPLES
     if int(n) < 1:
         raise ValueError(f"call_lane_samples needs at least 1 lane-sample a call, not {n}")
-    before, CALL_LANE_SAMPLES = CALL_LANE_SAMPLES, int(n)
+    before = CALL_LANE_SAMPLES, SMALL_CALL_LANE_SAMPLES
+    CALL_LANE_SAMPLES = SMALL_CALL_LANE_SAMPLES = int(n)
     try:
         yield
     finally:
-        CALL_LANE_SAMPLES = before
+        CALL_LANE_SAMPLES, SMALL_CALL_LANE_SAMPLES = before
 
 
 def _by_kind(kinds, run):
@@ -927,7 +943,8 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     ``CALL_LANE_SAMPLES`` lane-samples (pamid's one lane sizer,
     :func:`pamid._lanes._batch.items_per_call`), through the exported program on disk when
     the command line keeps them (a new process then skips tracing the lanes)."""
-    size = items_per_call(n_samples=shared[1].shape[1], max_lane_samples=CALL_LANE_SAMPLES,
+    m, n = shared[1].shape  # the muscles' forces, (muscles, padded rows)
+    size = items_per_call(n_samples=n, max_lane_samples=_lane_samples(m, n),
                           max_lanes=CALL_LANES)
     key = spec.program_key
     if key is not None:
