@@ -37,6 +37,13 @@ Rows (pamid | reference):
   ``pamid.diagnose(load_bench(path))`` in a process of its own, first call and warm, its
   peak RSS, what it selected and the RMSE before → after, against issue #16's targets
   (≤ 60 s, ≤ 4 GB).
+- ``latency``: a lab's new one-muscle file (issue 29; ``latency.py`` has the whole study):
+  `pamid fit`, `compare` and `diagnose` as commands, each with a compilation cache of its
+  own, first on a file of one row count (empty cache: its time less the warm one is the
+  row's "compile") and then on a new file of another row count in the same size class
+  (the row's time) | the pandas + ``curve_fit`` script a user writes for the file
+  (``baseline_scipy_wald.py``: three starts, Wald intervals), median of three runs. The
+  "speedup" is below 1 where pamid takes longer. 600 rows (``--quick``), also 2,000 (full).
 
 Method. Every (row, side, N) runs in its own subprocess, so that its peak memory
 (``VmHWM``, see :func:`_peak_rss_mb`; imports and data included) is its own. pamid: "compile" =
@@ -771,6 +778,44 @@ def bench_diagnose(args, tmp: Path, timeout: float, path: Path | None = None) ->
     return [row]
 
 
+#: ``latency``: rows of the one-muscle files, per mode.
+LATENCY_ROWS = {"quick": (600,), "full": (600, 2000)}
+
+
+def bench_latency(args, tmp: Path, timeout: float) -> list[dict]:
+    """A lab's new one-muscle file, command by command, beside the SciPy script: the
+    scenarios "empty cache" and "new file, warm class" of ``latency.py`` (its helpers make
+    the files and time the commands), one table row per command and row count."""
+    import latency
+
+    py = sys.executable
+    env = dict(os.environ)
+    rows = []
+    for n in LATENCY_ROWS["quick" if args.quick else "full"]:
+        folder = tmp / f"latency_{n}"
+        folder.mkdir()
+        files = latency.one_muscle_files(folder, n, 1000 + n, env, py)
+        ref = latency.scipy_time(py, files["B"], env, folder, 3)
+        for command in latency.COMMANDS:
+            say(f"  latency {command} {n} rows …")
+            cache = folder / f"cache-{command}"
+            cache.mkdir()
+            cmd_env = {**env, "PAMID_CACHE_DIR": str(cache)}
+            first, warm = (latency.run([py, "-m", "pamid", command, str(files[k]), "--json"],
+                                       cmd_env, folder, timeout) for k in "AB")
+            row = {"name": f"pamid {command}, new one-muscle file", "n": n,
+                   "pamid_s": warm["wall_s"], "first_call_s": first["wall_s"],
+                   "compile_s": max(first["wall_s"] - warm["wall_s"], 0.0),
+                   "reference": "pandas + curve_fit script (Wald)", "reference_s": ref,
+                   "speedup": ref / warm["wall_s"], "reference_extrapolated": False}
+            bad = [f"exit {r['rc']}: {r['stderr'][-300:]}" for r in (first, warm) if r["rc"]]
+            if bad:
+                row["error"] = "; ".join(bad)
+                say(f"    {row['error']}")
+            rows.append(row)
+    return rows
+
+
 def _diagnose_lines(row) -> list[str]:
     """The lines printed under the table for one diagnose row."""
     if not row.get("diagnose_end_to_end_s"):
@@ -825,7 +870,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="small sizes, fewer repeats")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     ap.add_argument("--only", help="comma-separated benchmarks: "
-                    + ",".join([*(r[0] for r in ROWS), "diagnose", "diagnose_aarl"])
+                    + ",".join([*(r[0] for r in ROWS), "diagnose", "diagnose_aarl", "latency"])
                     + " (diagnose_aarl: the full run, or --quick when named)")
     ap.add_argument("--timeout", type=float, help="seconds per subprocess (900; quick 300)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
@@ -929,10 +974,12 @@ def main(argv=None) -> int:
             else:
                 say(f"diagnose_aarl skipped: no measured file at {AARL_FILE} "
                     "(see ../shared/data/README.md)", file=out_text)
+        latency_rows = bench_latency(args, tmp, timeout) if not only or "latency" in only else []
     for row in rows:
         row.pop("_pamid", None)
         row.pop("bench", None)
     rows.extend(diagnose)
+    rows.extend(latency_rows)
 
     # ---- the table ----
     lines = []
