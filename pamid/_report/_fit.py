@@ -28,7 +28,7 @@ def fit_json(result, **extra) -> str:
     import pyarrow.compute as pc
 
     columns, optional = fit_columns(result)
-    columns = [_TEXT[kind](values) for kind, values in columns]
+    columns = _column_texts(columns)
     marks = [f'"<<pamid-json-{k}>>"' for k in range(len(columns))]
     template = json.dumps(muscle_entry(result, iter(m[1:-1] for m in marks), optional))
     pieces = []
@@ -46,6 +46,24 @@ def fit_json(result, **extra) -> str:
     return head.replace('"<<pamid-json-muscles>>"', muscles, 1)
 
 
+def _column_texts(columns) -> list:
+    """The JSON texts of :func:`pamid._fit._api.fit_columns`' columns (:data:`_TEXT`), the
+    float columns written by one :func:`_json_floats` over all of them, then cut apart (a
+    file of 10,000 muscles has some seventy such columns of 10,000 values each)."""
+    import numpy as np
+
+    floats = [k for k, (kind, _) in enumerate(columns) if kind == "float"]
+    texts = [None if kind == "float" else _TEXT[kind](values) for kind, values in columns]
+    if floats:
+        parts = [np.ravel(np.asarray(columns[k][1], dtype=np.float64)) for k in floats]
+        joined = _json_floats(np.concatenate(parts))
+        at = 0
+        for k, part in zip(floats, parts, strict=True):
+            texts[k] = joined.slice(at, len(part))
+            at += len(part)
+    return texts
+
+
 #: Where pyarrow's text of a float64 (the shortest digits that read back as the same
 #: number) is Python's ``repr`` once ".0" is added to a whole number: 1e-4 <= |x| < 1e10,
 #: and zero. Outside it the two place the exponent differently ("1e-05" against "0.00001",
@@ -57,7 +75,8 @@ def _json_floats(a):
     """A 1-D array as the JSON text of each element (a pyarrow string array), as
     ``json.dumps`` writes the plain values of :meth:`pamid.FitResult.to_dict`:
     ``float.__repr__``, null for NaN and ±inf. pyarrow writes the values in
-    :data:`_ARROW_REPR_RANGE` (4× faster than ``repr``), Python the rest."""
+    :data:`_ARROW_REPR_RANGE` (4× faster than ``repr``) and the nulls, Python the other
+    finite values."""
     import numpy as np
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -72,11 +91,14 @@ def _json_floats(a):
     text = pc.if_else(whole, pc.binary_join_element_wise(text, ".0", ""), text)
     if fast.all():
         return text
-    texts = text.to_pylist()
-    for i in np.flatnonzero(~fast).tolist():
-        x = float(a[i])
-        texts[i] = float.__repr__(x) if np.isfinite(x) else "null"
-    return pa.array(texts, type=pa.string())
+    missing = ~np.isfinite(a)  # null, whole columns of them where an interval is not shown
+    if missing.any():
+        text = pc.if_else(pa.array(missing), pa.scalar("null"), text)
+    slow = ~fast & ~missing
+    if not slow.any():
+        return text
+    reprs = [float.__repr__(x) for x in a[slow].tolist()]
+    return pc.replace_with_mask(text, pa.array(slow), pa.array(reprs, type=pa.string()))
 
 
 def _json_texts(values: list) -> list[str]:
