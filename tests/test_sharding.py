@@ -140,7 +140,7 @@ def test_one_lane_sizer_for_fits_intervals_and_refits():
         CALL_LANE_SAMPLES,
         CALL_LANES,
         SMALL_CALL_LANE_SAMPLES,
-        _lane_samples,
+        _refit_call_lanes,
     )
     from pamid._lanes._batch import CHUNK_LANES, CPU_CHUNK_LANES, items_per_call
 
@@ -155,8 +155,10 @@ def test_one_lane_sizer_for_fits_intervals_and_refits():
     small = {n: items_per_call(n_samples=n, max_lane_samples=SMALL_CALL_LANE_SAMPLES,
                                max_lanes=CALL_LANES, devices=cpu) for n in (64, 512, 2048)}
     assert small == {64: 64, 512: 8, 2048: 2}
-    assert _lane_samples(1, 2048) == SMALL_CALL_LANE_SAMPLES
-    assert _lane_samples(100, 512) == CALL_LANE_SAMPLES
+    # What a diagnosis's refits take: one muscle of 2,048 rows is small, 100 of 512 are not.
+    assert _refit_call_lanes(1, 2048) == small[2048] == 2
+    assert _refit_call_lanes(1, 512) == small[512] == 8
+    assert _refit_call_lanes(100, 512) == refits[512] == 16
 
     class Gpu:
         platform = "gpu"

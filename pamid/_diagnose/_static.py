@@ -695,8 +695,7 @@ class StaticProblem:
                                 eff_bounds[0][lanes_set]], axis=1)
         upper = np.concatenate([np.tile(upper, (len(lanes_set), 1)),
                                 eff_bounds[1][lanes_set]], axis=1)
-        size = items_per_call(n_samples=n, max_lane_samples=_lane_samples(m, n),
-                              max_lanes=CALL_LANES)
+        size = _refit_call_lanes(m, n)
 
         def refit(kind, sel):
             flag, ns = kind
@@ -876,11 +875,13 @@ CALL_LANE_SAMPLES = 8 * 1024
 SMALL_CALL_LANE_SAMPLES = 4 * 1024
 
 
-def _lane_samples(muscles: int, rows: int) -> int:
-    """Lane-samples a call of the refits and their statistics takes for a diagnosis of
-    ``muscles`` × ``rows`` (padded rows): :data:`SMALL_CALL_LANE_SAMPLES` for a small one,
-    else :data:`CALL_LANE_SAMPLES`."""
-    return SMALL_CALL_LANE_SAMPLES if _small(muscles, rows) else CALL_LANE_SAMPLES
+def _refit_call_lanes(muscles: int, rows: int) -> int:
+    """Lanes of every call of the refits and of their statistics in a diagnosis of
+    ``muscles`` × ``rows`` (padded rows), by pamid's one lane sizer: ``CALL_LANES``, fewer (a
+    power of two) where that many would hold more than :data:`SMALL_CALL_LANE_SAMPLES`
+    lane-samples in a small diagnosis, :data:`CALL_LANE_SAMPLES` in another."""
+    samples = SMALL_CALL_LANE_SAMPLES if _small(muscles, rows) else CALL_LANE_SAMPLES
+    return items_per_call(n_samples=rows, max_lane_samples=samples, max_lanes=CALL_LANES)
 
 
 @contextlib.contextmanager
@@ -938,14 +939,10 @@ def _run_lanes(fn, name, spec, with_compliance, shared, *lanes):
     """``fn(spec, with_compliance, shared, *lanes)`` (a jitted, vmapped lane function: the
     statistics of the refits) over the lanes as the refits run
     (:func:`pamid._fit._least_squares.least_squares` with a lane view): in calls of one size
-    for a given sample count (:func:`pamid._lanes._batch.map_shared`), ``CALL_LANES``
-    lanes, fewer (a power of two) where that many would hold more than
-    ``CALL_LANE_SAMPLES`` lane-samples (pamid's one lane sizer,
-    :func:`pamid._lanes._batch.items_per_call`), through the exported program on disk when
+    for a given sample count (:func:`pamid._lanes._batch.map_shared`), as many lanes as
+    the refits' calls take (:func:`_refit_call_lanes`), through the exported program on disk when
     the command line keeps them (a new process then skips tracing the lanes)."""
-    m, n = shared[1].shape  # the muscles' forces, (muscles, padded rows)
-    size = items_per_call(n_samples=n, max_lane_samples=_lane_samples(m, n),
-                          max_lanes=CALL_LANES)
+    size = _refit_call_lanes(*shared[1].shape)  # the muscles' forces: (muscles, padded rows)
     key = spec.program_key
     if key is not None:
         key = (name, *key, with_compliance, *(d.name for d in transforms()))

@@ -47,9 +47,9 @@ def fit_json(result, **extra) -> str:
 
 
 def _column_texts(columns) -> list:
-    """The JSON texts of :func:`pamid._fit._api.fit_columns`' columns (:data:`_TEXT`), the
-    float columns written by one :func:`_json_floats` over all of them, then cut apart (a
-    file of 10,000 muscles has some seventy such columns of 10,000 values each)."""
+    """The JSON texts of :func:`pamid._fit._api.fit_columns`' columns: :data:`_TEXT`'s, and
+    the float columns written by one :func:`_json_floats` over all of them, then cut apart
+    (a file of 10,000 muscles has some seventy such columns of 10,000 values each)."""
     import numpy as np
 
     floats = [k for k, (kind, _) in enumerate(columns) if kind == "float"]
@@ -108,12 +108,12 @@ def _json_texts(values: list) -> list[str]:
             for v in values]
 
 
-#: JSON text of each kind of column of :func:`pamid._fit._api.fit_columns`.
+#: JSON text of each kind of column of :func:`pamid._fit._api.fit_columns` but "float",
+#: whose columns :func:`_column_texts` writes together (:func:`_json_floats`).
 _TEXT = {
     "text": _json_texts,
     "int": lambda values: [str(int(v)) for v in values],
     "bool": lambda values: ["true" if v else "false" for v in values],
-    "float": _json_floats,
 }
 
 
