@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from .._effects._basis import legendre_basis, scaled
-from .._inference import numerical_rank
+from .._inference import normal_upper_tail, numerical_rank
 
 __all__ = ["autocorrelation_time", "covariate_dependence", "effective_sample_size",
            "ljung_box", "runs_test", "scaled", "signed_rank_greater", "legendre_basis"]
@@ -43,8 +43,9 @@ __all__ = ["autocorrelation_time", "covariate_dependence", "effective_sample_siz
 # The p-values come from scipy.special's distribution functions, not from scipy.stats:
 # importing scipy.stats takes 0.6 s (it builds every distribution's docstring), about a
 # fifth of a warm ``pamid diagnose`` of a one-muscle file (benchmarks/README.md, latency.py).
-# The functions are those scipy.stats itself evaluates: norm.sf(z) = ndtr(−z),
-# chi2.sf(q, k) = chdtrc(k, q), f.sf(f, d1, d2) = fdtrc(d1, d2, f).
+# The functions are those scipy.stats itself evaluates: chi2.sf(q, k) = chdtrc(k, q),
+# f.sf(f, d1, d2) = fdtrc(d1, d2, f); the normal tail norm.sf(z) is pamid's one
+# (pamid._inference.normal_upper_tail, ½·erfc(z/√2), what scipy's ndtr(−z) computes).
 
 #: A residual whose lag-1 autocorrelation is below this many of its standard errors (1/√n
 #: for a white series: Bartlett, 1946) is taken as white by :func:`autocorrelation_time`
@@ -69,13 +70,11 @@ def runs_test(residuals: list[np.ndarray]) -> dict:
         mean += 2.0 * n1 * n2 / n + 1.0
         var += 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n**2 * (n - 1.0))
         n_total += n
-    from scipy.special import ndtr
-
     if var <= 0:
         return {"runs": runs, "expected": mean, "z": math.nan, "p_value": math.nan}
     z = (runs - mean) / math.sqrt(var)
     return {"runs": int(runs), "expected": mean, "z": z,
-            "p_value": float(2.0 * ndtr(-abs(z)))}
+            "p_value": float(2.0 * normal_upper_tail(abs(z)))}
 
 
 def ljung_box(residuals: list[np.ndarray], lags: int = 10) -> dict:
@@ -277,8 +276,6 @@ def signed_rank_greater(d) -> float:
     in tests/test_diagnose_residual.py), without importing scipy.stats. NaN without any
     difference.
     """
-    from scipy.special import ndtr
-
     d = np.asarray(d, dtype=np.float64)
     d = d[d != 0]
     n = len(d)
@@ -299,4 +296,4 @@ def signed_rank_greater(d) -> float:
     mean = n * (n + 1.0) * 0.25
     var = n * (n + 1.0) * (2.0 * n + 1.0)
     se = math.sqrt((var - float(np.sum(sizes.astype(float) ** 3 - sizes)) / 2) / 24)
-    return float(ndtr(-(r_plus - mean) / se))
+    return float(normal_upper_tail((r_plus - mean) / se))

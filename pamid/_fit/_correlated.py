@@ -57,7 +57,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._inference import gram_inverse, t_critical, wald_interval
+from .._inference import gram_inverse, normal_upper_tail, t_critical, wald_interval
 from .._lanes._batch import FitData, map_lanes
 from .._solvers import residuals_and_jacobian
 from ._least_squares import _key, _take_lanes, lag1_sums, residuals
@@ -258,12 +258,10 @@ def _longest_run(groups) -> np.ndarray:
 def lag1_from_sums(num, den, n_pairs):
     """ρ̂ = num / den and its one-sided p-value against independence (z = ρ̂·√pairs);
     NumPy arrays. Returns (rho, p_value, pairs)."""
-    from scipy.special import ndtr
-
     num, den, n_pairs = np.asarray(num), np.asarray(den), np.asarray(n_pairs)
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = num / den
-    p_value = np.where(n_pairs > 0, 1.0 - ndtr(rho * np.sqrt(n_pairs)), np.nan)
+    p_value = np.where(n_pairs > 0, normal_upper_tail(rho * np.sqrt(n_pairs)), np.nan)
     return rho, p_value, n_pairs
 
 

@@ -170,9 +170,10 @@ def prepare_in_background(disk_caches: bool = False, then=None) -> Startup:
     NumPy's copies release the GIL): importing JAX (``import pamid`` does not), the disk
     caches when ``disk_caches`` (:func:`use_disk_caches`), then ``then()`` (the command's
     checks of its options, which import the model), then JAX's CPU backend and its first
-    array, the LAPACK kernels a deserialized program's lowering loads (from SciPy:
-    ``import scipy.linalg``), ``scipy.special`` (the Student-t quantile of the intervals)
-    and the hash of pamid's source (:func:`_code_version`, when the cache is on).
+    array and the hash of pamid's source (:func:`_code_version`, when the cache is on).
+    Not SciPy: a fit's programs call no LAPACK and its quantiles are pamid's own, so a fit
+    does not import it (a program that calls LAPACK binds its kernels, from SciPy, where
+    it is read back: :func:`_lapack_ready`).
 
     :meth:`Startup.result` waits for the thread and returns what ``then`` returned, or
     raises what it raised; :meth:`Startup.restore` waits for it and puts the caches'
@@ -220,8 +221,6 @@ class Startup(threading.Thread):
             import jax.numpy as jnp
 
             jnp.zeros(1).block_until_ready()
-            import scipy.linalg  # noqa: F401
-            import scipy.special  # noqa: F401
 
             if _DIR is not None:
                 _code_version()
