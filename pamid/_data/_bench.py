@@ -73,9 +73,9 @@ import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from .._errors import BenchDataError
 from .._units import ATMOSPHERE_KPA, pressure_text_to_kPa, pressure_to_kPa
@@ -99,6 +99,9 @@ from ._table import (
     _Table,
     _text_values,
 )
+
+if TYPE_CHECKING:  # pandas is imported where it is used, after a fit's file is parsed
+    import pandas as pd
 
 __all__ = ["BenchData", "CensoredRowsWarning", "MissingValuesWarning", "load_bench",
            "load_bench_chunks"]
@@ -402,6 +405,8 @@ def _load_sheets(p: Path, shown: str, stream, reader, options: dict, columns, l0
     warning (unless ``header_row`` says where the header is); warnings name their sheet;
     columns that some sheets lack are not recorded there (NaN), with a warning.
     ``source_row`` counts the data rows of each sheet."""
+    import pandas as pd
+
     options = {name: value for name, value in options.items() if name != "sheet"}
     benches: list[BenchData] = []
     skipped: list[str] = []
@@ -546,6 +551,8 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
     The steps, in the order their errors come: units in the column names, required columns,
     cells that must be numbers, labels, pressure, lengths, contraction, direction, cycle and
     time; then the frame, the warning for blank cells, and censoring."""
+    import pandas as pd
+
     _check_units(table)
     pressure_col = _check_required(table, l0_value)
     numbers = _numbers(table)
@@ -903,6 +910,8 @@ def _frame(table: _Table, numbers: _Numbers, labels: _Labels, pressure_kpa: np.n
            contraction, contraction_mm, l0_rows) -> pd.DataFrame:
     """The frame of :class:`BenchData` (all rows, censored ones included), in its column
     order."""
+    import pandas as pd
+
     values, blanks = numbers.values, numbers.blanks
     ids = labels.ids
     data: dict[str, object] = {
@@ -977,6 +986,8 @@ def _labels(table: _Table, name: str, what: str):
     ``uniques[codes[i]]`` (distinct, in order of first appearance), ``ids`` the list of
     every row's label where the reader gave text (else None). Labels are text, even where
     the cells are numbers; an empty one is an error."""
+    import pandas as pd
+
     col = table.columns[name]
     ids: list[str] | None = None
     if col.codes is not None:
@@ -1010,6 +1021,8 @@ def _row_ranges(rows: np.ndarray, most: int = 3) -> str:
 def _blank_cells_message(table, blanks: dict, codes, uniques, has_muscle: bool) -> str:
     """The :class:`MissingValuesWarning` text: how many cells of which columns were blank,
     on which rows and of which muscles."""
+    import pandas as pd
+
     parts = []
     for k, (name, mask) in enumerate(blanks.items()):
         rows = np.flatnonzero(mask)

@@ -22,7 +22,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from .._errors import BenchDataError
 from .._units import pressure_text_to_kPa
@@ -263,6 +262,7 @@ def _factorize_text(chunked) -> tuple[np.ndarray, np.ndarray]:
     ``uniques`` (an object array of str) are distinct and in order of first appearance, so
     code k first appears after code k - 1 does. Python strips each distinct cell once.
     """
+    import pandas as pd
     import pyarrow as pa
 
     if pa.types.is_dictionary(chunked.type):  # parsed as such (labels, _read_csv_fast)

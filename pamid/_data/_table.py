@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pandas as pd
 
 from .._errors import BenchDataError
 from ._cells import QUANTITY_UNITS, _all_numbers, _number_problem, _point
@@ -157,6 +156,8 @@ def _check_duplicates(shown: str, names: list[str]) -> None:
 
 def _text_values(uniques: np.ndarray, codes: np.ndarray):
     """A frame column holding ``uniques[codes]``, of the dtype pandas gives a list of str."""
+    import pandas as pd
+
     return pd.Series(uniques.tolist()).take(codes).array
 
 
