@@ -171,6 +171,21 @@ def test_the_reader_imports_pandas_after_the_parse(fresh_python, tmp_path):
     assert before is False and after is True and rows == 3
 
 
+def test_the_fit_imports_pandas_first_for_a_small_file(tmp_path):
+    # ... and JAX first for a large one, whose parse then runs beside JAX's import.
+    from types import SimpleNamespace
+
+    from pamid._commands.fit import OVERLAP_PARSE_BYTES, imports_first
+
+    small, large = tmp_path / "small.csv", tmp_path / "large.csv"
+    small.write_text("muscle,pressure_kPa,contraction_pct,force_N\n")
+    with open(large, "wb") as f:  # sparse: no bytes written
+        f.truncate(OVERLAP_PARSE_BYTES)
+    assert imports_first(SimpleNamespace(data=str(small))) == ("pandas",)
+    assert imports_first(SimpleNamespace(data=str(large))) == ()
+    assert imports_first(SimpleNamespace(data="-")) == ("pandas",)  # a stream
+
+
 PRIVATE_IMPORT = re.compile(r"^\s*(from\s+pamid\._|import\s+pamid\._|from\s+pamid\s+import\s+_)",
                             re.MULTILINE)
 
