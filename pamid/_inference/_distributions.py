@@ -40,6 +40,10 @@ _STIRLING = (1.0 / 12.0, -1.0 / 360.0, 1.0 / 1260.0, -1.0 / 1680.0)
 _NEWTON_RTOL = 1e-13
 _FRACTION_RTOL = 1e-15
 _TINY = 1e-300
+#: Quantiles computed before, by (ν, q): a fit asks for the same one for each kind of
+#: interval (each Newton solve is 1-2 ms). Emptied when it would pass :data:`_KNOWN_MAX`.
+_KNOWN: dict[tuple[float, float], float] = {}
+_KNOWN_MAX = 65536
 
 
 def t_upper_quantile(dof, q: float) -> np.ndarray:
@@ -59,11 +63,19 @@ def t_upper_quantile(dof, q: float) -> np.ndarray:
     if q == 0.5:
         out[finite] = 0.0
         return out
-    z = NormalDist().inv_cdf(q)
-    t = _expansion(values, z, q)
-    small = values < EXPANSION_DOF
-    if small.any():
-        t[small] = _newton(values[small], q, z, t[small])
+    t = np.array([_KNOWN.get((v, q), np.nan) for v in values.tolist()])
+    new = np.isnan(t)
+    if new.any():
+        z = NormalDist().inv_cdf(q)
+        nu = values[new]
+        fresh = _expansion(nu, z, q)
+        small = nu < EXPANSION_DOF
+        if small.any():
+            fresh[small] = _newton(nu[small], q, z, fresh[small])
+        t[new] = fresh
+        if len(_KNOWN) + int(new.sum()) > _KNOWN_MAX:
+            _KNOWN.clear()
+        _KNOWN.update(zip(((v, q) for v in nu.tolist()), fresh.tolist()))
     out[finite] = t[where.reshape(-1)]
     return out
 
