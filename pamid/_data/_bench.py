@@ -539,6 +539,7 @@ class _Labels:
     ids: list[str] | None  # every row's muscle id, where the reader gave text
     has_muscle: bool
     first_row: np.ndarray  # the row where each muscle first appears
+    blocks: bool = False  # each muscle's rows in one block (codes never decrease)
     trial_codes: np.ndarray | None = None
     trial_uniques: np.ndarray | None = None
     trial_labels: object = None  # the frame's trial column, where the file has trials
@@ -704,9 +705,17 @@ def _muscles_and_trials(table: _Table) -> _Labels:
         ids = ["muscle"] * n
         codes, uniques = np.zeros(n, dtype=np.int64), np.array(["muscle"], dtype=object)
         has_muscle = False
-    # Row where each muscle first appears: code k first appears after code k - 1 does.
-    first_row = np.flatnonzero(codes > np.maximum.accumulate(np.concatenate(([-1], codes[:-1]))))
-    labels = _Labels(codes, uniques, ids, has_muscle, first_row)
+    # Row where each muscle first appears: code k first appears after code k - 1 does. In
+    # the usual layout, each muscle in one block, that is where the code changes.
+    step = np.diff(codes)
+    blocks = bool((step >= 0).all())
+    if blocks:
+        first_row = np.concatenate(([0], np.flatnonzero(step) + 1)) if n else step
+    else:
+        first_row = np.flatnonzero(
+            codes > np.maximum.accumulate(np.concatenate(([-1], codes[:-1]))))
+    del step
+    labels = _Labels(codes, uniques, ids, has_muscle, first_row, blocks)
     if "trial" in cols:
         trial_codes, trial_uniques, trial_labels = _labels(table, "trial", "trial label")
         if trial_labels is None:
@@ -770,7 +779,7 @@ def _nominal_length(table: _Table, values: dict[str, np.ndarray], labels: _Label
     if "l0_mm" in values:
         l0_rows = values["l0_mm"]
         # The first row whose l0 differs from that on the first row of its muscle.
-        i = _first_true(l0_rows != l0_rows[first_row[codes]])
+        i = _first_true(l0_rows != _of_first_rows(l0_rows, labels))
         if i is not None:
             ref = int(first_row[codes[i]])
             raise table.error(
@@ -792,6 +801,14 @@ def _nominal_length(table: _Table, values: dict[str, np.ndarray], labels: _Label
     elif l0_value is not None:
         l0_rows = np.full(table.n_rows, l0_value)
     return l0_rows
+
+
+def _of_first_rows(values: np.ndarray, labels: _Labels) -> np.ndarray:
+    """Every row's value of ``values`` on its muscle's first row."""
+    if labels.blocks:  # repeated block by block: no gather of every row
+        counts = np.diff(np.append(labels.first_row, len(labels.codes)))
+        return np.repeat(values[labels.first_row], counts)
+    return values[labels.first_row[labels.codes]]
 
 
 def _contraction(table: _Table, values: dict[str, np.ndarray], l0_rows: np.ndarray | None

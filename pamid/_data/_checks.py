@@ -75,14 +75,12 @@ def _check_time_increases(
     descriptions ("muscle 'A', trial 'T2'") rather than bare names."""
     if blank is not None and blank.any():
         kept = np.flatnonzero(~blank)
-        previous_kept = _previous_rows(codes[kept])
-        previous = np.full(len(codes), -1, dtype=np.int64)
-        previous[kept] = np.where(previous_kept >= 0, kept[np.maximum(previous_kept, 0)], -1)
+        found = _first_not_later(codes[kept], time[kept])
+        found = None if found is None else (int(kept[found[0]]), int(kept[found[1]]))
     else:
-        previous = _previous_rows(codes)
-    i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
-    if i is not None:
-        j = int(previous[i])
+        found = _first_not_later(codes, time)
+    if found is not None:
+        i, j = found
         whose = ""
         if has_group:
             whose = f" of {names[codes[i]]}" if described else f" of {group} '{names[codes[i]]}'"
@@ -92,6 +90,19 @@ def _check_time_increases(
             column="time_s",
             index=i,
         )
+
+
+def _first_not_later(codes: np.ndarray, time: np.ndarray) -> tuple[int, int] | None:
+    """The first row i whose time is not later than that of j, the row before it with the
+    same code, as (i, j); None where time increases within every code."""
+    if len(codes) > 1:
+        step = np.diff(codes)
+        if (step >= 0).all():  # the usual layout, each group in one block: j = i - 1
+            i = _first_true((step == 0) & (time[1:] <= time[:-1]))
+            return None if i is None else (i + 1, i)
+    previous = _previous_rows(codes)
+    i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
+    return None if i is None else (i, int(previous[i]))
 
 
 def _previous_rows(codes: np.ndarray) -> np.ndarray:

@@ -286,6 +286,11 @@ def _in_order_of_appearance(codes: np.ndarray, n_codes: int) -> bool:
     grows by steps of 1 up to ``n_codes`` − 1."""
     if len(codes) == 0:
         return n_codes == 0
+    step = np.diff(codes)
+    if (step >= 0).all():  # each code in one block: the largest so far is the code itself
+        return bool(codes[0] == 0 and codes[-1] == n_codes - 1
+                    and ((step == 0) | (step == 1)).all())
+    del step
     largest = np.maximum.accumulate(codes)
     return bool(codes[0] == 0 and largest[-1] == n_codes - 1
                 and (np.diff(largest) <= 1).all())
