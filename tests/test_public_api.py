@@ -159,7 +159,7 @@ def test_the_reader_imports_pandas_after_the_parse(fresh_python, tmp_path):
     # `pamid fit` imports the reader on its main thread while JAX starts on another:
     # pandas (0.25 s of Python) is imported once pyarrow has parsed the file (which lets
     # the JAX thread run), not before. 10,000 muscles: 2.62 s -> 2.30 s
-    # (benchmarks/README.md, "pandas after the parse").
+    # (benchmarks/README.md, "A fit without SciPy, and pandas beside the parse").
     path = tmp_path / "b.csv"
     path.write_text("muscle,pressure_kPa,contraction_pct,force_N\nA,300,1.0,100.5\n"
                     "A,300,2.0,90.25\nA,400,1.0,150.0\n")

@@ -156,9 +156,9 @@ def prepare(args):
 #: A file at least this large is parsed while JAX is imported on the start-up thread, and
 #: pandas after; a smaller one has pandas imported there first, JAX then (the reader wants
 #: pandas at once, and two threads importing at the same time slow each other down).
-#: Warm ``pamid fit --json``, medians of 5-8 alternating runs (benchmarks/README.md,
-#: "pandas first for a small file"): 4, 14 and 42 MB 0.04-0.08 s faster with pandas first,
-#: 139 MB (10,000 muscles) 0.1 s slower.
+#: Warm ``pamid fit --json``, medians of 5-8 alternating runs: 4, 14 and 42 MB 0.04-0.08 s
+#: faster with pandas first, 139 MB (10,000 muscles) 0.1 s slower (benchmarks/README.md,
+#: "A fit without SciPy, and pandas beside the parse").
 OVERLAP_PARSE_BYTES = 64 << 20
 
 

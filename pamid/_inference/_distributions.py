@@ -3,8 +3,9 @@ by (:func:`pamid._inference.t_critical`).
 
 Written here rather than taken from SciPy so that a fit does not import SciPy: importing
 ``scipy.special`` cost a one-muscle ``pamid fit`` 0.1-0.15 s of its ~1.1 s
-(benchmarks/README.md, "A fit without SciPy"). The tests hold it to ``scipy.special.stdtrit``
-to 1e-13 over ν = 1 … 10⁹ and levels up to 0.99999 (tests/test_student_t.py).
+(benchmarks/README.md, "A fit without SciPy, and pandas beside the parse"). The tests hold
+it to ``scipy.special.stdtrit`` to 2e-13 over ν = 1 … 10¹² and levels 0.2 … 0.99999
+(tests/test_distributions.py).
 
 The method, for the upper quantile t of probability q > ½ with ν degrees of freedom:
 
@@ -12,8 +13,8 @@ The method, for the upper quantile t of probability q > ½ with ν degrees of fr
   (Abramowitz & Stegun 26.7.5, four terms), within rounding of the exact value there.
 - Below: Newton's method on the upper tail P(T > t) = ½·I_x(ν/2, ½), x = ν/(ν + t²)
   (Abramowitz & Stegun 26.7.1, the tail as a regularized incomplete beta function), from
-  the expansion (exact for ν = 1 and 2). The tail is convex in t > 0 and t ≥ z, so the
-  iterates are kept at or above z and approach t from below.
+  the expansion (exact for ν = 1 and 2). The tail is convex in t > 0 and t ≥ z: the
+  iterates are kept at or above z, and after the first step they approach t from below.
 - I_x(a, b) by its continued fraction (DLMF 8.17.22), evaluated by the modified Lentz
   method (Thompson & Barnett 1986), on the side of x where it converges
   (I_x(a, b) = 1 − I_{1−x}(b, a) on the other, DLMF 8.17.4); log B(a, ½) from
