@@ -56,6 +56,11 @@ def t_upper_quantile(dof, q: float) -> np.ndarray:
     dof = np.asarray(dof, dtype=np.float64)
     if not 0.5 <= q < 1.0:
         raise ValueError(f"the quantile's probability must be in [0.5, 1), got {q}")
+    flat = dof.reshape(-1)
+    if flat.size and (flat == flat[0]).all():  # one ν, known already (the usual call)
+        known = _KNOWN.get((float(flat[0]), q))
+        if known is not None:
+            return np.full(dof.shape, known)
     out = np.full(dof.shape, np.nan)
     finite = ~np.isnan(dof)
     if not finite.any():
@@ -179,4 +184,5 @@ def normal_upper_tail(z) -> np.ndarray:
     """P(Z > z) for a standard normal Z, ½·erfc(z/√2) (``math.erfc``, elementwise; accurate
     in the far tail, where 1 − Φ(z) would round to 0). NaN stays NaN."""
     z = np.asarray(z, dtype=np.float64)
-    return 0.5 * np.vectorize(math.erfc, otypes=[np.float64])(z / math.sqrt(2.0))
+    half = [0.5 * math.erfc(x) for x in (z / math.sqrt(2.0)).reshape(-1).tolist()]
+    return np.array(half, dtype=np.float64).reshape(z.shape)
