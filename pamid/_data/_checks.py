@@ -95,25 +95,16 @@ def _check_time_increases(
 def _first_not_later(codes: np.ndarray, time: np.ndarray) -> tuple[int, int] | None:
     """The first row i whose time is not later than that of j, the row before it with the
     same code, as (i, j); None where time increases within every code."""
-    if len(codes) > 1:
-        step = np.diff(codes)
-        if (step >= 0).all():  # the usual layout, each group in one block: j = i - 1
-            i = _first_true((step == 0) & (time[1:] <= time[:-1]))
-            return None if i is None else (i + 1, i)
-    previous = _previous_rows(codes)
-    i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
-    return None if i is None else (i, int(previous[i]))
-
-
-def _previous_rows(codes: np.ndarray) -> np.ndarray:
-    """For every row, the index of the previous row with the same code (-1 if none)."""
-    n = len(codes)
-    if n and (np.diff(codes) >= 0).all():  # the usual layout: each muscle in one block
-        previous = np.arange(-1, n - 1)
-        previous[np.diff(codes, prepend=-1) != 0] = -1
-        return previous
-    order = np.argsort(codes, kind="stable")  # rows grouped by code, in file order within
-    previous = np.full(n, -1, dtype=np.int64)
+    if len(codes) < 2:
+        return None
+    step = np.diff(codes)
+    if (step >= 0).all():  # the usual layout, each group in one block: j = i - 1
+        i = _first_true((step == 0) & (time[1:] <= time[:-1]))
+        return None if i is None else (i + 1, i)
+    # The rows grouped by code, in file order within: each row's previous one of its code.
+    order = np.argsort(codes, kind="stable")
+    previous = np.full(len(codes), -1, dtype=np.int64)
     same = codes[order[1:]] == codes[order[:-1]]
     previous[order[1:][same]] = order[:-1][same]
-    return previous
+    i = _first_true((previous >= 0) & (time <= time[np.maximum(previous, 0)]))
+    return None if i is None else (i, int(previous[i]))
