@@ -35,7 +35,6 @@ test's and the notebook's run.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
@@ -90,8 +89,8 @@ def subset(bench, muscles=None, rows_per_muscle: int | None = None):
         frame = frame.iloc[np.sort(np.concatenate(keep))]
     frame = frame.reset_index(drop=True)
     kept = tuple(m for m in bench.muscles if m in set(frame["muscle"]))
-    return dataclasses.replace(bench, frame=frame, muscles=kept,
-                               l0_mm={m: bench.l0_mm.get(m) for m in kept})
+    return bench.with_frame(frame, muscles=kept,
+                            l0_mm={m: bench.l0_mm.get(m) for m in kept})
 
 
 # ------------------------------------------------------------------------------------------

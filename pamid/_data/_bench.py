@@ -66,6 +66,7 @@ force of exactly 0 N. Such rows are dropped (with a :class:`CensoredRowsWarning`
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import os
@@ -88,6 +89,7 @@ from ._cells import (
     _quantity_of,
 )
 from ._checks import _check_missing, _check_time_increases, _check_units, _first_true
+from ._columns import Coded, Columns, factorize
 from ._readers import ALL_SHEETS, FORMATS, reader_for, readers_taking
 from ._streams import _stream_bytes
 from ._table import (
@@ -97,7 +99,6 @@ from ._table import (
     _first_problem,
     _is_numeric_extra,
     _Table,
-    _text_values,
 )
 
 if TYPE_CHECKING:  # pandas is imported where it is used, after a fit's file is parsed
@@ -133,10 +134,15 @@ class BenchData:
 
     Attributes
     ----------
+    columns:
+        The rows as NumPy columns (:class:`~pamid._data._columns.Columns`): what a fit
+        reads, with the muscle ids as codes (``columns.codes("muscle")``), without pandas.
     frame:
-        One row per kept sample, in file order. Columns: ``muscle`` (str), ``trial`` (str,
-        where the file gives one), ``pressure_kPa`` (gauge pressure, kPa),
-        ``contraction_pct`` (%, positive when shorter than l0) and ``contraction_mm``
+        The same rows as a pandas DataFrame, made from :attr:`columns` when first asked
+        for (a property; a fit never asks). One row per kept sample, in file order.
+        Columns: ``muscle`` (str), ``trial`` (str, where the file gives one),
+        ``pressure_kPa`` (gauge pressure, kPa), ``contraction_pct`` (%, positive when
+        shorter than l0) and ``contraction_mm``
         (the contraction as a length, Cullinan's y) where each is given or derivable with
         l0, ``force_N`` (N), all float64 apart from the labels; then those of ``time_s``
         (s), ``direction`` (int, +1 or -1), ``temperature_C`` (deg C), ``cycle`` (int),
@@ -161,7 +167,7 @@ class BenchData:
         ``"psi"``); ``frame`` always holds kPa.
     """
 
-    frame: pd.DataFrame
+    columns: Columns
     path: str
     has_muscle_column: bool
     muscles: tuple[str, ...]
@@ -171,12 +177,34 @@ class BenchData:
     pressure_unit_in_file: str = "kPa"
 
     @functools.cached_property
+    def frame(self) -> pd.DataFrame:
+        """The rows as a pandas DataFrame (see the class's attributes), made once."""
+        return self.columns.to_frame()
+
+    @functools.cached_property
     def curves(self):
         """The file's curves, direction, trials and repeats (:func:`pamid._data._curves.
         find_curves`), aligned with :attr:`frame`; found once and kept."""
         from ._curves import find_curves
 
-        return find_curves(self.frame)
+        return find_curves(self.columns)
+
+    @property
+    def muscle_codes(self) -> np.ndarray:
+        """Every row's muscle as its index into :attr:`muscles`."""
+        return self.columns.codes("muscle")[0]
+
+    def take(self, rows, **changes) -> BenchData:
+        """The same file with a subset of its rows (a boolean mask or integer indices) and
+        any other attribute changed (``muscles=...`` where rows of muscles go)."""
+        return dataclasses.replace(self, columns=self.columns.take(rows), **changes)
+
+    def with_frame(self, frame: pd.DataFrame, **changes) -> BenchData:
+        """The same file with the rows of ``frame`` (rows selected or columns added with
+        pandas) and any other attribute changed."""
+        bench = dataclasses.replace(self, columns=Columns.of_frame(frame), **changes)
+        bench.__dict__["frame"] = frame
+        return bench
 
     def groups(self):
         """(muscle id, its rows with a fresh index) for every muscle, in order, in one pass
@@ -196,7 +224,7 @@ class BenchData:
         return rows.reset_index(drop=True)
 
     def __len__(self) -> int:
-        return len(self.frame)
+        return self.columns.n_rows
 
 
 def load_bench(
@@ -465,9 +493,9 @@ def _load_sheets(p: Path, shown: str, stream, reader, options: dict, columns, l0
     covariates = tuple(dict.fromkeys(c for b in benches for c in b.covariates))
     muscles = tuple(m for b in benches for m in b.muscles)
     if on_rows is not None:
-        on_rows(np.array([len(b.frame) for b in benches], dtype=np.int64))
-    return BenchData(
-        frame=frame,
+        on_rows(np.array([len(b) for b in benches], dtype=np.int64))
+    bench = BenchData(
+        columns=Columns.of_frame(frame),
         path=shown,
         has_muscle_column=True,
         muscles=muscles,
@@ -476,6 +504,8 @@ def _load_sheets(p: Path, shown: str, stream, reader, options: dict, columns, l0
         n_censored=sum(b.n_censored for b in benches),
         pressure_unit_in_file=benches[0].pressure_unit_in_file,
     )
+    bench.__dict__["frame"] = frame  # made already
+    return bench
 
 
 def _check_reading_options(shown: str, sep, decimal, columns) -> str | None:
@@ -542,7 +572,6 @@ class _Labels:
     blocks: bool = False  # each muscle's rows in one block (codes never decrease)
     trial_codes: np.ndarray | None = None
     trial_uniques: np.ndarray | None = None
-    trial_labels: object = None  # the frame's trial column, where the file has trials
 
 
 def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
@@ -552,8 +581,6 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
     The steps, in the order their errors come: units in the column names, required columns,
     cells that must be numbers, labels, pressure, lengths, contraction, direction, cycle and
     time; then the frame, the warning for blank cells, and censoring."""
-    import pandas as pd
-
     _check_units(table)
     pressure_col = _check_required(table, l0_value)
     numbers = _numbers(table)
@@ -568,7 +595,8 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
     l0_rows = _nominal_length(table, numbers.values, labels, l0_value)
     contraction, contraction_mm = _contraction(table, numbers.values, l0_rows)
     _check_direction_cycle_time(table, numbers, labels)
-    frame = _frame(table, numbers, labels, pressure_kpa, contraction, contraction_mm, l0_rows)
+    columns = _frame(table, numbers, labels, pressure_kpa, contraction, contraction_mm,
+                     l0_rows)
     codes, uniques, has_muscle = labels.codes, labels.uniques, labels.has_muscle
     if numbers.blanks:
         warnings.warn(
@@ -589,7 +617,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
                 "Pass keep_censored=True (--keep-censored) to keep them",
                 column="force_N",
             )
-        frame = frame.loc[~censored].reset_index(drop=True)
+        columns = columns.take(~censored)
         kept_codes = codes[~censored]
         present = np.zeros(len(uniques), dtype=bool)
         present[kept_codes] = True
@@ -610,7 +638,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
         kept_codes = codes
 
     # Muscles in order of first appearance among the kept rows.
-    kept_muscles = pd.unique(kept_codes) if len(kept_codes) < n else np.arange(len(uniques))
+    kept_muscles = factorize(kept_codes)[1] if len(kept_codes) < n else np.arange(len(uniques))
     muscles = tuple(uniques[kept_muscles].tolist())
     if l0_rows is not None:  # constant within a muscle, checked above
         l0_of = l0_rows[labels.first_row[kept_muscles]].astype(float).tolist()
@@ -619,7 +647,7 @@ def _interpret(table: _Table, l0_value: float | None, keep_censored: bool,
         l0_per_muscle = dict.fromkeys(muscles)
 
     return BenchData(
-        frame=frame,
+        columns=columns,
         path=table.path,
         has_muscle_column=has_muscle,
         muscles=muscles,
@@ -717,11 +745,8 @@ def _muscles_and_trials(table: _Table) -> _Labels:
     del step
     labels = _Labels(codes, uniques, ids, has_muscle, first_row, blocks)
     if "trial" in cols:
-        trial_codes, trial_uniques, trial_labels = _labels(table, "trial", "trial label")
-        if trial_labels is None:
-            trial_labels = _text_values(trial_uniques, trial_codes)
+        trial_codes, trial_uniques, _ = _labels(table, "trial", "trial label")
         labels.trial_codes, labels.trial_uniques = trial_codes, trial_uniques
-        labels.trial_labels = trial_labels
     return labels
 
 
@@ -907,7 +932,7 @@ def _check_direction_cycle_time(table: _Table, numbers: _Numbers, labels: _Label
     if "time_s" in values:
         codes, uniques, has_muscle = labels.codes, labels.uniques, labels.has_muscle
         blank_time = numbers.blanks.get("time_s")
-        if labels.trial_labels is None:
+        if labels.trial_codes is None:
             _check_time_increases(table, cols["time_s"].raw, values["time_s"], codes, uniques,
                                   "muscle", has_muscle, blank=blank_time)
         else:  # time restarts in every trial
@@ -924,18 +949,13 @@ def _check_direction_cycle_time(table: _Table, numbers: _Numbers, labels: _Label
 
 
 def _frame(table: _Table, numbers: _Numbers, labels: _Labels, pressure_kpa: np.ndarray,
-           contraction, contraction_mm, l0_rows) -> pd.DataFrame:
-    """The frame of :class:`BenchData` (all rows, censored ones included), in its column
-    order."""
-    import pandas as pd
-
+           contraction, contraction_mm, l0_rows) -> Columns:
+    """The columns of :class:`BenchData` (all rows, censored ones included), in the frame's
+    column order."""
     values, blanks = numbers.values, numbers.blanks
-    ids = labels.ids
-    data: dict[str, object] = {
-        "muscle": ids if ids is not None else _text_values(labels.uniques, labels.codes)
-    }
-    if labels.trial_labels is not None:
-        data["trial"] = labels.trial_labels
+    data: dict[str, object] = {"muscle": Coded(labels.codes, labels.uniques)}
+    if labels.trial_codes is not None:
+        data["trial"] = Coded(labels.trial_codes, labels.trial_uniques)
     data["pressure_kPa"] = pressure_kpa.astype(np.float64)
     if contraction is not None:
         data["contraction_pct"] = np.asarray(contraction, dtype=np.float64)
@@ -957,11 +977,7 @@ def _frame(table: _Table, numbers: _Numbers, labels: _Labels, pressure_kpa: np.n
         elif name in numbers.text_extras:
             data[name] = table.columns[name].original
     data["source_row"] = np.arange(1, table.n_rows + 1, dtype=np.int64) + table.row_offset
-    # No copy: every array in ``data`` was made here for this frame.
-    return pd.DataFrame(
-        {k: (v.to_numpy() if isinstance(v, pd.Series) else v) for k, v in data.items()},
-        copy=False,
-    )
+    return Columns(data, table.n_rows)
 
 
 def _check_required(table: _Table, l0_arg: float | None) -> str:
@@ -1003,8 +1019,6 @@ def _labels(table: _Table, name: str, what: str):
     ``uniques[codes[i]]`` (distinct, in order of first appearance), ``ids`` the list of
     every row's label where the reader gave text (else None). Labels are text, even where
     the cells are numbers; an empty one is an error."""
-    import pandas as pd
-
     col = table.columns[name]
     ids: list[str] | None = None
     if col.codes is not None:
@@ -1018,8 +1032,7 @@ def _labels(table: _Table, name: str, what: str):
         else:
             ids = [col.raw(i) for i in range(table.n_rows)]
             missing = np.asarray(col.null, dtype=bool)
-        codes, uniques = pd.factorize(np.asarray(ids, dtype=object))
-        uniques = np.asarray(uniques, dtype=object)
+        codes, uniques = factorize(np.asarray(ids, dtype=object))
     i = _first_true(missing)
     if i is not None:
         raise table.error(f"empty {what}; every row needs one", column=name, index=i)
@@ -1038,8 +1051,6 @@ def _row_ranges(rows: np.ndarray, most: int = 3) -> str:
 def _blank_cells_message(table, blanks: dict, codes, uniques, has_muscle: bool) -> str:
     """The :class:`MissingValuesWarning` text: how many cells of which columns were blank,
     on which rows and of which muscles."""
-    import pandas as pd
-
     parts = []
     for k, (name, mask) in enumerate(blanks.items()):
         rows = np.flatnonzero(mask)
@@ -1047,7 +1058,7 @@ def _blank_cells_message(table, blanks: dict, codes, uniques, has_muscle: bool) 
         noun = ("blank cell" if count == 1 else "blank cells") if k == 0 else ""
         where = f"row{'s' if count > 1 else ''} {_row_ranges(rows + table.row_offset)}"
         if has_muscle:
-            muscles = uniques[pd.unique(codes[rows])].tolist()
+            muscles = uniques[factorize(codes[rows])[1]].tolist()
             shown = ", ".join(repr(m) for m in muscles[:3])
             more = f" and {len(muscles) - 3} more" if len(muscles) > 3 else ""
             where += f", muscle{'s' if len(muscles) > 1 else ''} {shown}{more}"

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._arrow import from_numpy, null_strings, to_numpy
 from .._errors import BenchDataError
 from .._units import pressure_text_to_kPa
 from ._cells import (
@@ -37,9 +38,10 @@ from ._cells import (
     _point,
     _quantity_of,
 )
+from ._columns import Coded, factorize
 from ._names import NameProblem, canonical_names
 from ._streams import _looks_binary, _read_bytes, head_bytes
-from ._table import _check_duplicates, _Column, _Table, _text_values
+from ._table import _check_duplicates, _Column, _Table
 
 #: Extensions read as CSV (so is any extension no reader claims, and a stream without one).
 CSV_SUFFIXES: tuple[str, ...] = (".csv", ".tsv", ".txt")
@@ -242,12 +244,12 @@ def _plain_numbers(chunked, decimal: str = ".", blanks: bool = False) -> np.ndar
         if decimal != ".":
             chunk = pc.replace_substring(chunk, ",", ".")
         if empty is not None and empty.any():
-            chunk = pc.if_else(pa.array(empty), pa.scalar(None, pa.string()), chunk)
+            chunk = pc.if_else(from_numpy(empty), null_strings(len(chunk)), chunk)
         try:
             floats = pc.cast(chunk, pa.float64())
         except (pa.ArrowException, ValueError):
             return None
-        values[at : at + len(chunk)] = floats.to_numpy(zero_copy_only=False)
+        values[at : at + len(chunk)] = to_numpy(floats)
         at += len(chunk)
     finite = np.isfinite(values)
     if not (finite.all() if blank is None else (finite | blank).all()):
@@ -262,28 +264,26 @@ def _factorize_text(chunked) -> tuple[np.ndarray, np.ndarray]:
     ``uniques`` (an object array of str) are distinct and in order of first appearance, so
     code k first appears after code k - 1 does. Python strips each distinct cell once.
     """
-    import pandas as pd
     import pyarrow as pa
 
     if pa.types.is_dictionary(chunked.type):  # parsed as such (labels, _read_csv_fast)
         encoded = chunked.unify_dictionaries().combine_chunks()
     else:
         encoded = chunked.combine_chunks().dictionary_encode()
-    raw_codes = encoded.indices.to_numpy(zero_copy_only=False)
+    raw_codes = to_numpy(encoded.indices)
     stripped = np.array([cell.strip() for cell in encoded.dictionary.to_pylist()], dtype=object)
-    text_ids, texts = pd.factorize(stripped)  # cells that differ only in blanks merge here
-    ids = text_ids.astype(np.int64)[raw_codes]
-    texts = np.asarray(texts, dtype=object)
+    text_ids, texts = factorize(stripped)  # cells that differ only in blanks merge here
+    ids = text_ids[raw_codes]
     if _in_order_of_appearance(ids, len(texts)):  # pyarrow's dictionary usually is
         return ids, texts
-    codes, order = pd.factorize(ids)
-    return codes.astype(np.int64, copy=False), texts[order]
+    codes, order = factorize(ids)
+    return codes, texts[order]
 
 
 def _in_order_of_appearance(codes: np.ndarray, n_codes: int) -> bool:
     """Whether every code 0 … ``n_codes`` − 1 appears in ``codes``, code k first after code
-    k − 1 does (as ``pd.factorize`` numbers them): the largest code so far starts at 0 and
-    grows by steps of 1 up to ``n_codes`` − 1."""
+    k − 1 does (as :func:`~pamid._data._columns.factorize` numbers them): the largest code
+    so far starts at 0 and grows by steps of 1 up to ``n_codes`` − 1."""
     if len(codes) == 0:
         return n_codes == 0
     step = np.diff(codes)
@@ -318,7 +318,7 @@ def _float_column(name: str, chunked) -> _Column | None:
     cell that is not a finite number (NaN or inf written as such, or 1e999)."""
     if chunked.null_count and not _blank_ok(name):
         return None
-    values = chunked.to_numpy()  # NaN where a cell is blank (null)
+    values = to_numpy(chunked)  # NaN where a cell is blank (null)
     if not values.flags.writeable:  # one chunk: a view of pyarrow's buffer
         values = values.copy()
     finite = np.isfinite(values)
@@ -364,7 +364,7 @@ def _fast_column(
     numbers = _point(uniques, decimal)
     if not _all_numbers(numbers):  # text, kept as it is
         column = _Column(name, codes=codes, uniques=uniques, numeric=False)
-        column.original = _text_values(uniques, codes)
+        column.original = Coded(codes, uniques)
         return column
     if any(_number_problem(cell) is not None for cell in numbers if cell or not blanks):
         return None  # a numeric covariate with a problem

@@ -35,7 +35,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import pandas as pd
+
+from ._columns import Columns, factorize
 
 __all__ = ["Curves", "find_curves"]
 
@@ -160,8 +161,8 @@ class _Blocks:
         """Median of ``values`` over each block's ``valid`` rows (``default`` if none)."""
         out = np.full(self.n_blocks, default, dtype=np.float64)
         if valid.any():
-            med = pd.Series(values[valid]).groupby(self.block[valid]).median()
-            out[med.index.to_numpy()] = med.to_numpy()
+            groups, med = _grouped_median(self.block[valid], values[valid])
+            out[groups] = med
         return out
 
     def running_mean(self, x: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -177,6 +178,33 @@ class _Blocks:
     def shifted(self, idx_offset: np.ndarray) -> np.ndarray:
         """Row index moved by ``idx_offset`` rows, clipped to the row's block."""
         return np.minimum(np.maximum(self.idx + idx_offset, self.start), self.end - 1)
+
+
+def _grouped_median(groups: np.ndarray, values: np.ndarray):
+    """``(ids, medians)``: the median of ``values`` over each group id present, ids
+    ascending; NaN values left out (a group of NaN only has median NaN). The mean of the two
+    middle values of an even count, ``(a + b) / 2``, as pandas' grouped median has it."""
+    order = np.lexsort((values, groups))
+    g, v = groups[order], values[order]
+    new = np.ones(len(g), dtype=bool)
+    new[1:] = g[1:] != g[:-1]
+    starts = np.flatnonzero(new)
+    # NaN sorts last within its group: count the others
+    valid = np.add.reduceat((~np.isnan(v)).astype(np.int64), starts)
+    lower = starts + np.maximum(valid - 1, 0) // 2
+    upper = starts + np.maximum(valid, 1) // 2
+    med = np.where(valid % 2 == 1, v[lower], (v[lower] + v[upper]) / 2.0)
+    return g[starts], np.where(valid > 0, med, np.nan)
+
+
+def _first_of_max(groups: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """For each group id in ascending order, the position (into ``values``) of its largest
+    value, the first one where several are largest (as a grouped ``idxmax``)."""
+    order = np.lexsort((np.arange(len(values)), -values, groups))
+    g = groups[order]
+    first = np.ones(len(g), dtype=bool)
+    first[1:] = g[1:] != g[:-1]
+    return order[first]
 
 
 def _ffill_within(values: np.ndarray, known: np.ndarray, blocks: _Blocks) -> np.ndarray:
@@ -334,7 +362,7 @@ def _level_starts(jump, held_raw, tol, exact, blocks: _Blocks) -> np.ndarray:
     rows = np.flatnonzero(jump)
     has_big = np.bincount(run[rows], weights=big[rows].astype(float)) > 0
     size = np.where(has_prev[rows], np.abs(d1[rows]), -1.0)
-    best = pd.Series(size).groupby(run[rows]).idxmax().to_numpy()
+    best = _first_of_max(run[rows], size)
     best = best[~has_big[np.unique(run[rows])]]
     starts[rows[best]] = True
     starts |= big
@@ -432,11 +460,12 @@ def _merge_short_runs(d, smooth, blocks: _Blocks, retrace):
     return run_dir[run_of_row]
 
 
-def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -> Curves:
+def find_curves(frame, *, contraction_column: str | None = None) -> Curves:
     """Find curves, direction, trials and repeats in a bench table (all muscles at once).
 
     Args:
-        frame: rows of a bench table in file order (``BenchData.frame``) with
+        frame: rows of a bench table in file order (``BenchData.frame``, a pandas
+            DataFrame, or ``BenchData.columns``) with
             ``pressure_kPa`` and a contraction column, and optionally ``muscle``,
             ``trial``, ``time_s``, ``direction`` (NaN where not recorded) and ``cycle``.
             Within a muscle and trial the rows must be in time order (the loader checks).
@@ -452,14 +481,12 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
             (c for c in ("contraction_pct", "contraction_mm") if c in frame), None)
         if contraction_column is None:
             raise ValueError("find_curves needs contraction_pct or contraction_mm")
-    muscle = (pd.factorize(frame["muscle"], sort=False)[0] if "muscle" in frame
-              else np.zeros(n, dtype=np.int64))
+    muscle = _codes(frame, "muscle") if "muscle" in frame else np.zeros(n, dtype=np.int64)
     if "trial" in frame:
-        pairs = pd.MultiIndex.from_arrays([muscle, pd.factorize(frame["trial"])[0]])
-        trial_code = pd.factorize(pairs, sort=False)[0]
+        trial_code = _pair_codes(muscle, _codes(frame, "trial"))
     else:
         trial_code = muscle.copy()
-    cycle = frame["cycle"].to_numpy() if "cycle" in frame else None
+    cycle = np.asarray(frame["cycle"]) if "cycle" in frame else None
 
     # Sort rows so that every muscle is one block and, within it, every trial one block,
     # in order of first appearance; the rows of a trial keep their file (time) order.
@@ -479,9 +506,9 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
 
     trials = _Blocks(sort(key_t))
     muscles = _Blocks(sort(key_m))
-    p = sort(frame["pressure_kPa"].to_numpy(np.float64))
-    k = sort(frame[contraction_column].to_numpy(np.float64))
-    t = sort(frame["time_s"].to_numpy(np.float64)) if "time_s" in frame else None
+    p = sort(np.asarray(frame["pressure_kPa"], dtype=np.float64))
+    k = sort(np.asarray(frame[contraction_column], dtype=np.float64))
+    t = sort(np.asarray(frame["time_s"], dtype=np.float64)) if "time_s" in frame else None
     cycle = sort(cycle)
 
     exact_p, exact_k = _exact(p, trials), _exact(k, trials)
@@ -517,7 +544,8 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
     mov = _analyse(moving_raw, segments, sigma_seg[segments.starts])
     trial_of_seg = trials.block[segments.starts]
     span = np.where(moving_block == 1, pin.span, kin.span)[trial_of_seg]
-    given = sort(frame["direction"].to_numpy(np.float64)) if "direction" in frame else None
+    given = (sort(np.asarray(frame["direction"], dtype=np.float64)) if "direction" in frame
+             else None)
     recorded = np.isfinite(given) if given is not None else np.zeros(n, dtype=bool)
     if recorded.all():
         direction = given
@@ -573,6 +601,25 @@ def find_curves(frame: pd.DataFrame, *, contraction_column: str | None = None) -
     return out
 
 
+def _codes(frame, name: str) -> np.ndarray:
+    """A label column's codes in order of first appearance: from :class:`Columns` as the
+    reader coded it, else (a DataFrame's text) by ``pd.factorize``."""
+    if isinstance(frame, Columns):
+        return frame.codes(name)[0]
+    import pandas as pd  # a DataFrame: pandas is there
+
+    codes = pd.factorize(frame[name], sort=False, use_na_sentinel=False)[0]  # NaN: a label
+    return codes.astype(np.int64, copy=False)
+
+
+def _pair_codes(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Codes of the pairs ``(a[i], b[i])`` of two code arrays (values ≥ 0), in order of
+    first appearance."""
+    if not len(a):
+        return np.zeros(0, dtype=np.int64)
+    return factorize(a.astype(np.int64) * (int(b.max()) + 1) + b)[0]
+
+
 def _elapsed(t: np.ndarray, trials: _Blocks, muscles: _Blocks) -> np.ndarray:
     """Time since the muscle's first sample, trials laid end to end: each trial starts
     one (median) sampling interval after the previous trial of the muscle ends."""
@@ -603,8 +650,7 @@ def _repeats(trials, muscles, moving_block, level_raw, iso, pin, kin, cycle, has
     if not has_trials:
         if cycle is None:
             return np.zeros(n, dtype=np.int64)
-        pairs = pd.MultiIndex.from_arrays([muscles.block, cycle])
-        codes = pd.factorize(pairs, sort=False)[0]
+        codes = _pair_codes(muscles.block, factorize(cycle)[0])
         first = np.zeros(codes.max() + 1, dtype=np.int64)
         first[codes[::-1]] = np.arange(n)[::-1]
         new = np.zeros(n, dtype=bool)
@@ -612,13 +658,15 @@ def _repeats(trials, muscles, moving_block, level_raw, iso, pin, kin, cycle, has
         rank = np.cumsum(new) - 1
         return rank - rank[muscles.start]
     # Setting of a trial: which input moves, and the held input's median, min and max.
-    stats = pd.Series(level_raw).groupby(trials.block).agg(["median", "min", "max"])
-    med, lo, hi = (stats[c].to_numpy() for c in ("median", "min", "max"))
+    med = _grouped_median(trials.block, level_raw)[1]
+    lo, hi = trials.min_max(level_raw)
     tol = np.where(moving_block == 1, kin.tol, pin.tol)
     block_muscle = muscles.block[trials.starts]
-    span = pd.Series(hi - lo).groupby(block_muscle).transform("max").to_numpy()
-    span = np.maximum(span, pd.Series(med).groupby(block_muscle).transform(
-        lambda s: s.max() - s.min()).to_numpy())
+    # per trial: the largest range of a trial of its muscle, and its muscle's range of medians
+    of_muscle = _Blocks(block_muscle)  # a muscle's trials are one block
+    span = of_muscle.per_block(np.maximum.reduceat(hi - lo, of_muscle.starts))
+    med_lo, med_hi = of_muscle.min_max(med)
+    span = np.maximum(span, of_muscle.per_block(med_hi - med_lo))
     tolerance = np.maximum(SETTING_FRACTION * span, 3.0 * tol)
     repeat_block = np.zeros(len(med), dtype=np.int64)
     # A loop over trials (not rows): files hold tens to thousands of trials.

@@ -40,9 +40,10 @@ from .._units import ATMOSPHERE_KPA, PRESSURE_UNITS, pressure_to_kPa
 from ._cells import _quantity_of as _bench_quantity_of
 from ._checks import _check_missing, _check_time_increases, _first_true
 from ._checks import _check_units as _bench_check_units
+from ._columns import Coded
 from ._readers import reader_for
 from ._streams import _stream_bytes
-from ._table import _as_floats, _first_problem, _Table
+from ._table import _as_floats, _first_problem, _Table, _text_values
 
 __all__ = ["MIN_SAMPLES", "DecayData", "load_decay"]
 
@@ -219,7 +220,9 @@ def load_decay(path: str | os.PathLike) -> DecayData:
     for name in names:
         if name in ("trial",) or _quantity_of(name) is not None:
             continue
-        data[name] = cols[name].original
+        original = cols[name].original
+        data[name] = (_text_values(original.uniques, original.codes)
+                      if isinstance(original, Coded) else original)
     data["source_row"] = np.arange(1, n + 1, dtype=np.int64)
     frame = pd.DataFrame(
         {k: (v.to_numpy() if isinstance(v, pd.Series) else v) for k, v in data.items()}

@@ -18,7 +18,6 @@ The procedure:
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from pathlib import Path
 
@@ -173,7 +172,7 @@ def subsample_curves(bench, max_rows: int):
         keep[np.flatnonzero(keep)[within % step != 0]] = False
         note = (f"one row in {step} of {int(np.sum(kept))} of {len(ids)} curves, evenly "
                 "spread over settings and time")
-    sub = dataclasses.replace(bench, frame=frame[keep].reset_index(drop=True))
+    sub = bench.take(keep)
     return sub, note
 
 

@@ -278,11 +278,8 @@ def check_baseline(bench, spec: ModelSpec, baseline, lower=None, upper=None) -> 
 
 def _without_muscles(bench, muscles) -> object:
     """``bench`` without the rows of ``muscles``."""
-    import dataclasses
-
     keep = ~bench.frame["muscle"].isin(list(muscles)).to_numpy()
-    return dataclasses.replace(bench, frame=bench.frame[keep].reset_index(drop=True),
-                               muscles=tuple(m for m in bench.muscles if m not in muscles))
+    return bench.take(keep, muscles=tuple(m for m in bench.muscles if m not in muscles))
 
 
 class StaticProblem:

@@ -6,7 +6,6 @@ import dataclasses
 
 import jax
 import numpy as np
-import pandas as pd
 
 from .._data._bench import BenchData
 from .._inference import cut_at_bounds, scale_covariance
@@ -359,17 +358,18 @@ def bench_to_fit_data(bench: BenchData, model: str | ModelSpec = "sarosi", *,
                       curves: bool = True) -> FitData:
     """Pack a loaded bench file into a batch, one lane per muscle, with the model's inputs.
 
-    Straight from the frame's columns (no per-muscle frames): muscle codes by one
-    ``pd.factorize``, then :func:`~pamid._lanes._batch.pack_rows`. The curve of every sample
-    (the bootstrap's resampling unit) is the file's one curve definition,
+    Straight from the file's columns (``bench.columns``: no per-muscle frames, no pandas):
+    the muscle codes as the reader found them, then :func:`~pamid._lanes._batch.pack_rows`.
+    The curve of every sample (the bootstrap's resampling unit) is the file's one curve
+    definition,
     ``bench.curves`` (:func:`pamid._data._curves.find_curves`); ``curves=False`` puts
     every sample of a muscle in curve 0, for fits that resample nothing.
     """
-    spec = get_model(model, bench.frame)
-    frame = bench.frame
-    codes = pd.factorize(frame["muscle"], sort=False)[0]
-    x = spec.x_from_frame(frame, bench.path)
-    y = frame["force_N"].to_numpy(dtype=np.float64)
+    columns = bench.columns
+    spec = get_model(model, columns)
+    codes = bench.muscle_codes
+    x = spec.x_from_frame(columns, bench.path)
+    y = np.asarray(columns["force_N"], dtype=np.float64)
     curve = bench.curves.curve if curves else None  # None: every row in curve 0
     return pack_rows(codes, x, y, curve, n_muscles=len(bench.muscles))
 
@@ -470,8 +470,7 @@ def fit_least_squares(
             not ask for it; HAC where only that is asked for), else Wald's; "wald":
             Wald's always. ``FitResult.ci95`` is Wald's either way.
     """
-    frame = data.frame if isinstance(data, BenchData) else None
-    spec = get_model(model, frame)
+    spec = get_model(model, data.columns if isinstance(data, BenchData) else None)
     unknown = set(intervals) - set(INTERVAL_KINDS)
     if unknown:
         raise ValueError(f"unknown interval kinds {sorted(unknown)}; choose from {INTERVAL_KINDS}")

@@ -344,11 +344,9 @@ def trial_groups(bench, of: str = "trial", muscles=None, width: int | None = Non
     ``muscles``: only these muscles (indices, in this order), their curves found on their
     own rows (the file's curves are not found for the others, unless found already), in
     ``width`` columns (the batch's)."""
-    import pandas as pd
-
     from .._lanes._batch import pack_rows
 
-    codes = pd.factorize(bench.frame["muscle"], sort=False)[0]
+    codes = bench.muscle_codes
     if muscles is None:
         packed = pack_rows(codes, (), np.zeros(len(codes)), getattr(bench.curves, of),
                            n_muscles=len(bench.muscles))
@@ -360,7 +358,7 @@ def trial_groups(bench, of: str = "trial", muscles=None, width: int | None = Non
     if "curves" in bench.__dict__:  # found already (a cached property): reuse them
         ids = np.asarray(getattr(bench.curves, of))[rows]
     else:
-        ids = np.asarray(getattr(find_curves(bench.frame.iloc[rows]), of))
+        ids = np.asarray(getattr(find_curves(bench.columns.take(rows)), of))
     lane = np.full(len(bench.muscles), -1, dtype=np.int64)
     lane[muscles] = np.arange(len(muscles))  # each muscle's lane, in the order given
     packed = np.asarray(pack_rows(lane[codes[rows]], (), np.zeros(len(rows)), ids,

@@ -169,7 +169,7 @@ class ModelSpec:
                 raise BenchDataError(
                     path, f"the {self.name} model needs {col}: {hint}", column=col
                 )
-        return self.to_x(*(frame[c].to_numpy(dtype=float) for c in self.columns))
+        return self.to_x(*(np.asarray(frame[c], dtype=float) for c in self.columns))
 
 
 def _deprecated_fast_path(self) -> FastPath | None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from .._arrow import constant_strings, from_numpy, strings
 from .._fit._api import fit_columns, json_head, muscle_entry
 
 
@@ -37,10 +38,13 @@ def fit_json(result, **extra) -> str:
         if not found or mark in template:  # a value that is no mark's text
             return json.dumps({**result.to_dict(), **extra})
         pieces.append(before)
+    n = len(columns[0]) if columns else 0  # muscles
     rows = [part for piece, column in zip(pieces, columns, strict=True)
-            for part in (piece, column if isinstance(column, pa.Array)
-                         else pa.array(column, type=pa.string()))]
-    entries = pc.binary_join_element_wise(*rows, template, "").to_pylist() if columns else []
+            for part in (constant_strings(piece, n),
+                         column if isinstance(column, pa.Array) else strings(column))]
+    entries = (pc.binary_join_element_wise(*rows, constant_strings(template, n),
+                                           constant_strings("", n)).to_pylist()
+               if columns else [])
     muscles = "[" + ", ".join(entries) + "]"
     head = json.dumps({**json_head(result), "muscles": "<<pamid-json-muscles>>", **extra})
     return head.replace('"<<pamid-json-muscles>>"', muscles, 1)
@@ -86,19 +90,21 @@ def _json_floats(a):
     size = np.abs(a)
     with np.errstate(invalid="ignore"):
         fast = ((size >= low) & (size < high)) | (a == 0)
-    text = pc.cast(pa.array(np.where(fast, a, 0.0)), pa.string())
+    n = len(a)
+    text = pc.cast(from_numpy(np.where(fast, a, 0.0)), pa.string())
     whole = pc.invert(pc.match_substring(text, "."))  # "100" is 100.0 in Python
-    text = pc.if_else(whole, pc.binary_join_element_wise(text, ".0", ""), text)
+    text = pc.if_else(whole, pc.binary_join_element_wise(
+        text, constant_strings(".0", n), constant_strings("", n)), text)
     if fast.all():
         return text
     missing = ~np.isfinite(a)  # null, whole columns of them where an interval is not shown
     if missing.any():
-        text = pc.if_else(pa.array(missing), pa.scalar("null"), text)
+        text = pc.if_else(from_numpy(missing), constant_strings("null", n), text)
     slow = ~fast & ~missing
     if not slow.any():
         return text
     reprs = [float.__repr__(x) for x in a[slow].tolist()]
-    return pc.replace_with_mask(text, pa.array(slow), pa.array(reprs, type=pa.string()))
+    return pc.replace_with_mask(text, from_numpy(slow), strings(reprs))
 
 
 def _json_texts(values: list) -> list[str]:
