@@ -152,10 +152,8 @@ def main(argv: list[str] | None = None) -> int:
             if getattr(args, "prepare", None) is not None:
                 # JAX's start-up, the disk caches and what the command does before its data
                 # are read, on a thread of their own while it reads them.
-                first = getattr(args, "imports_first", None)
                 args.startup = _export_cache.prepare_in_background(
-                    disk_caches=True, then=lambda: args.prepare(args),
-                    first=first(args) if first is not None else ())
+                    disk_caches=True, then=lambda: args.prepare(args))
                 restore_cache = args.startup.restore
             else:
                 restore_cache = _enable_compilation_cache()

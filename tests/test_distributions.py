@@ -67,10 +67,12 @@ def test_normal_upper_tail_is_scipys_and_keeps_the_far_tail():
     assert normal_upper_tail(30.0) > 0  # 1 − Φ(30) would round to 0
 
 
-def test_a_fit_read_from_the_cache_does_not_import_scipy(tmp_path, pamid_cli, cli_env):
+def test_a_fit_read_from_the_cache_imports_neither_scipy_nor_pandas(tmp_path, pamid_cli,
+                                                                    cli_env):
     """The fit's quantiles are pamid's and its programs call no LAPACK, so a fit whose
     programs are in the cache (the first run here compiles them, and JAX's lowering binds
-    LAPACK from SciPy then) never imports SciPy: 0.1-0.15 s of a one-muscle fit."""
+    LAPACK from SciPy then) never imports SciPy: 0.1-0.15 s of a one-muscle fit. Its file
+    is read, and its JSON written, without pandas (0.2 s)."""
     code = (
         "import jax, pamid\n"
         "frame = pamid.simulate_sarosi_bench(jax.random.key(3), pamid.sarosi.table_3_1(),\n"
@@ -85,9 +87,9 @@ def test_a_fit_read_from_the_cache_does_not_import_scipy(tmp_path, pamid_cli, cl
         "from pamid._cli import main\n"
         "with contextlib.redirect_stdout(io.StringIO()):\n"
         f"    code = main(['fit', r'{tmp_path / 'one.csv'}', '--json'])\n"
-        "print(code, 'scipy' in sys.modules)\n"
+        "print(code, 'scipy' in sys.modules, 'pandas' in sys.modules)\n"
     )
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                          env=cli_env, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.strip().splitlines()[-1] == "0 False"
+    assert out.stdout.strip().splitlines()[-1] == "0 False False"

@@ -195,7 +195,7 @@ def test_a_worker_process_gets_every_option_that_changes_its_fit():
     worker = fit_processes._worker_argv(args, "127.0.0.1:1234", 1)
     assert worker[1:3] == ["-m", "pamid"]
     again = parser.parse_args(worker[3:])
-    plumbing = {"func", "prepare", "imports_first", "before_jax", "outputs", "command"}
+    plumbing = {"func", "prepare", "before_jax", "outputs", "command"}
     options = set(vars(args)) - plumbing
     compared = options - NOT_FORWARDED
     assert {k: getattr(again, k) for k in compared} == {k: getattr(args, k) for k in compared}

@@ -58,8 +58,7 @@ def register(subparsers) -> None:
     fit_processes.add_arguments(fit)
     add_reading_arguments(fit)
     add_mcmc_arguments(fit)
-    fit.set_defaults(func=run, prepare=prepare, imports_first=imports_first,
-                     before_jax=fit_processes.start, outputs=(
+    fit.set_defaults(func=run, prepare=prepare, before_jax=fit_processes.start, outputs=(
         "fit.json", "fit_*.png", "residuals_*.png", "rmse_histogram.png", "mcmc_*.nc",
         "mcmc_*.nc3", "mcmc_*.png", "constants.parquet", "fit_stream.json"))
 
@@ -153,28 +152,6 @@ def prepare(args):
     return spec, parse_bounds(getattr(args, "bounds", None), spec)
 
 
-#: A file at least this large is parsed while JAX is imported on the start-up thread, and
-#: pandas after; a smaller one has pandas imported there first, JAX then (the reader wants
-#: pandas at once, and two threads importing at the same time slow each other down).
-#: Warm ``pamid fit --json``, medians of 5-8 alternating runs: 4, 14 and 42 MB 0.04-0.08 s
-#: faster with pandas first, 139 MB (10,000 muscles) 0.1 s slower (benchmarks/README.md,
-#: "A fit without SciPy, and pandas beside the parse").
-OVERLAP_PARSE_BYTES = 64 << 20
-
-
-def imports_first(args) -> tuple[str, ...]:
-    """What the start-up thread imports before JAX: pandas for a file smaller than
-    :data:`OVERLAP_PARSE_BYTES` (or one whose size cannot be known: a stream), else
-    nothing."""
-    import os
-
-    try:
-        size = os.stat(args.data).st_size
-    except (OSError, TypeError, ValueError):
-        return ("pandas",)
-    return ("pandas",) if size < OVERLAP_PARSE_BYTES else ()
-
-
 def _warm_fit(startup, rows_per_muscle, intervals) -> None:
     """``prepare_fit`` for the model the start-up thread checked; best effort: whatever
     fails here is done, or reported, where the fit runs."""
@@ -198,8 +175,7 @@ def run(args) -> int:
     if startup is None:
         from .._lanes import _export_cache
 
-        startup = _export_cache.prepare_in_background(then=lambda: prepare(args),
-                                                      first=imports_first(args))
+        startup = _export_cache.prepare_in_background(then=lambda: prepare(args))
     intervals = tuple(s.strip() for s in args.intervals.split(",") if s.strip())
     if args.stream:
         from . import fit_processes
@@ -238,7 +214,7 @@ def run(args) -> int:
     from .._fit._api import fit_least_squares
     from .._io import final_place, write_text_atomic
 
-    stage(f"loaded {len(bench.frame)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
+    stage(f"loaded {len(bench)} rows, {len(bench.muscles)} muscle(s) from {args.data}",
            quiet)
     if args.method == "mcmc":
         from .mcmc import run_mcmc_fit

@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
-import importlib
 import re
 import threading
 import zlib
@@ -165,19 +164,17 @@ def _code_version() -> str:
     return h.hexdigest()
 
 
-def prepare_in_background(disk_caches: bool = False, then=None, first=()) -> Startup:
+def prepare_in_background(disk_caches: bool = False, then=None) -> Startup:
     """Start a thread that does what the first compiled calls of a fit wait for, whatever
     the data, so that it runs while the caller reads its data file (pyarrow's parse and
     NumPy's copies release the GIL): importing JAX (``import pamid`` does not), the disk
     caches when ``disk_caches`` (:func:`use_disk_caches`), then ``then()`` (the command's
     checks of its options, which import the model), then JAX's CPU backend and its first
     array and the hash of pamid's source (:func:`_code_version`, when the cache is on).
-    ``first``: modules imported before JAX, where the caller will want them before the
-    thread would import them (``pamid fit`` of a small file: pandas, :func:`pamid._commands
-    .fit.imports_first`).
-    Not SciPy: a fit's programs call no LAPACK and its quantiles are pamid's own, so a fit
-    does not import it (a program that calls LAPACK binds its kernels, from SciPy, where
-    it is read back: :func:`_lapack_ready`).
+    Neither SciPy nor pandas: a fit's programs call no LAPACK, its quantiles are pamid's
+    own and its file is read without pandas (:mod:`pamid._data._columns`,
+    :mod:`pamid._arrow`), so a fit imports neither (a program that calls LAPACK binds its
+    kernels, from SciPy, where it is read back: :func:`_lapack_ready`).
 
     :meth:`Startup.result` waits for the thread and returns what ``then`` returned, or
     raises what it raised; :meth:`Startup.restore` waits for it and puts the caches'
@@ -185,7 +182,7 @@ def prepare_in_background(disk_caches: bool = False, then=None, first=()) -> Sta
     done where it is needed (an import started on the thread is waited for by Python's
     import lock). ``pamid fit`` on 10,000 muscles: see benchmarks/README.md, end_to_end.py."""
     global _STARTING
-    startup = _STARTING = Startup(disk_caches, then, first)
+    startup = _STARTING = Startup(disk_caches, then)
     startup.start()
     return startup
 
@@ -200,22 +197,16 @@ class Startup(threading.Thread):
     inside an extension's import when a command ends early, on a bad input say, crashed the
     process in its finalization: exit -11)."""
 
-    def __init__(self, disk_caches: bool, then, first=()) -> None:
+    def __init__(self, disk_caches: bool, then) -> None:
         super().__init__(name="pamid-prepare")
         self._disk_caches = disk_caches
         self._then = then
-        self._first = tuple(first)
         self._restore = lambda: None
         self._value = None
         self._error: BaseException | None = None
         self.caches = threading.Event()  # set once the disk caches are on (or not to be)
 
     def run(self) -> None:
-        for name in self._first:  # best effort: the caller imports it where it fails
-            try:
-                importlib.import_module(name)
-            except Exception:  # noqa: BLE001
-                pass
         try:
             try:
                 if self._disk_caches:
